@@ -1,0 +1,62 @@
+"""Where SUMO's binaries and tools are, taken from the ``eclipse-sumo`` wheel (never the system).
+
+``import sumo`` gives the SUMO home shipped on PyPI. The venv's ``bin/netconvert`` etc. are Python
+wrappers that cost ~0.2 s per call, so we call the real binaries directly (see shared NOTES).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+from pathlib import Path
+
+import sumo
+
+from .errors import RoadweaverError
+
+SUMO_HOME = Path(sumo.SUMO_HOME)
+
+
+def binary(name: str) -> str:
+    """Absolute path of a SUMO binary (``sumo``, ``netconvert``, ``duarouter``, ...)."""
+    path = SUMO_HOME / "bin" / name
+    if not path.exists():
+        raise RoadweaverError(f"SUMO binary {name!r} not found at {path}; reinstall eclipse-sumo")
+    return str(path)
+
+
+def tool(relative: str) -> str:
+    """Absolute path of a script under SUMO's ``tools/`` folder, e.g. ``randomTrips.py``."""
+    path = SUMO_HOME / "tools" / relative
+    if not path.exists():
+        raise RoadweaverError(f"SUMO tool {relative!r} not found at {path}; reinstall eclipse-sumo")
+    return str(path)
+
+
+def child_env() -> dict:
+    """Environment for SUMO child processes: SUMO_HOME set so XML validation stays on."""
+    env = dict(os.environ)
+    env["SUMO_HOME"] = str(SUMO_HOME)
+    return env
+
+
+def run(args: list[str], cwd: Path, what: str) -> subprocess.CompletedProcess:
+    """Run a SUMO program in ``cwd``; on failure raise a one-line error quoting its last message."""
+    proc = subprocess.run(args, cwd=cwd, env=child_env(), capture_output=True, text=True)
+    if proc.returncode != 0:
+        lines = [ln.strip() for ln in (proc.stderr + proc.stdout).splitlines() if ln.strip()]
+        last = lines[-1] if lines else f"exit code {proc.returncode}"
+        raise RoadweaverError(f"{what} failed: {last}")
+    return proc
+
+
+def strip_generated_comment(path: Path) -> None:
+    """Drop the ``<!-- generated on <timestamp> ... -->`` header SUMO writes, so outputs are
+    byte-identical across runs (the rest of the header only echoes relative options)."""
+    text = Path(path).read_text(encoding="utf-8")
+    start = text.find("<!-- generated on")
+    if start < 0:
+        return
+    end = text.find("-->", start)
+    text = text[:start] + text[end + 3 :].lstrip("\n")
+    Path(path).write_text(text, encoding="utf-8")
