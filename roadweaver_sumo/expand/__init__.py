@@ -1,0 +1,69 @@
+"""Stage 2: expand the skeleton into a connected road graph at the target density (§III-C)."""
+
+from __future__ import annotations
+
+import networkx as nx
+
+from ..metrics import road_node_count
+from ..roadgraph import add_road, edge_coords
+from ..skeleton import Skeleton
+from ..skeleton.procedural import block_size
+from ..spec import STAGE_FILL, STAGE_GROWTH, ScenarioSpec
+from .fill import fill_to_density, prune_to_density
+from .growth import grow_collectors, skeleton_tensor_field
+from .planar import build_planar_graph, clean
+from .reconnect import reconnect_dangles
+
+MIN_EDGE = 12.0  # metres: shorter roads are merged into a junction
+MIN_ANGLE = 30.0  # degrees between roads at a junction
+BORDER_MARGIN = 30.0  # dead ends this close to the border are roads cut off by the map edge
+DENSITY_ROUNDS = 4  # fill/prune/clean rounds: clean-up may merge junctions, so measure again
+DENSITY_TOLERANCE = 0.02
+
+
+def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
+    """Growth -> A* reconnection -> largest component -> fill/prune to the target density."""
+    field = skeleton_tensor_field(skeleton)
+    collectors = grow_collectors(spec, skeleton, field, spec.rng(STAGE_GROWTH))
+    roads = [(c, "arterial") for c in skeleton.polylines] + [(c, "collector") for c in collectors]
+    roads.append((skeleton.frame, "collector"))
+    G = build_planar_graph(roads, spec.width, spec.height)
+    stub = 0.5 * block_size(spec.density)
+    clean(G, MIN_EDGE, MIN_ANGLE, stub=MIN_EDGE, margin=BORDER_MARGIN)
+    links = reconnect_dangles(
+        G, skeleton.cost_map(), skeleton.res, radius=2 * stub, margin=BORDER_MARGIN
+    )
+    if links:
+        G = _renode(G, [(c, "collector") for c in links])
+    clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN)
+    target = spec.target_road_nodes
+    rng = spec.rng(STAGE_FILL)
+    for _ in range(DENSITY_ROUNDS):
+        fill_to_density(G, target, field, rng, MIN_EDGE, MIN_ANGLE)
+        prune_to_density(G, target)
+        G = _renode(G, [])
+        clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN)
+        if abs(road_node_count(G) - target) <= max(1, DENSITY_TOLERANCE * target):
+            break
+    return _relabel(G)
+
+
+def _renode(G: nx.Graph, extra: list) -> nx.Graph:
+    roads = [(G.edges[e]["coords"], G.edges[e]["road_class"]) for e in sorted(G.edges)]
+    return build_planar_graph(roads + extra, G.graph["width"], G.graph["height"])
+
+
+def _relabel(G: nx.Graph) -> nx.Graph:
+    """Number nodes 0..n-1 by position so ids and iteration order do not depend on the history
+    of edits (determinism of every later file)."""
+    order = sorted(G.nodes, key=lambda n: G.nodes[n]["xy"])
+    new_id = {n: k for k, n in enumerate(order)}
+    H = nx.Graph(**G.graph)
+    for n in order:
+        H.add_node(new_id[n], xy=tuple(float(c) for c in G.nodes[n]["xy"]))
+    edges = sorted((min(new_id[u], new_id[v]), max(new_id[u], new_id[v]), u, v) for u, v in G.edges)
+    for a, b, u, v in edges:
+        data = G.edges[u, v]
+        coords = edge_coords(G, u, v) if new_id[u] == a else edge_coords(G, v, u)
+        add_road(H, a, b, coords, data["road_class"])
+    return H

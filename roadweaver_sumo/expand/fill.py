@@ -1,0 +1,192 @@
+"""Density control: fill the largest empty blocks with local roads until the target is met.
+
+Density is a closed loop (DESIGN.md): each round splits the largest block (a face of the planar
+graph) with a local road traced through the same tensor field from the block's interior to its
+boundary on both sides. A road across a face adds exactly its two T-junctions, so the node count
+moves in steps of two and cannot overshoot by more than one. When there are too many road nodes,
+local roads that are not bridges are removed, shortest first.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+
+import networkx as nx
+import numpy as np
+import shapely
+from shapely.geometry import LineString, Point, Polygon
+
+from ..metrics import road_node_count
+from ..roadgraph import add_road, edge_coords, edge_length
+from ..streamlines import choose_axis, clamp_turn
+from ..tensor_field import TensorField
+
+STEP = 10.0
+
+
+def faces(G: nx.Graph) -> list[Polygon]:
+    """Bounded faces (blocks) of the planar road graph."""
+    lines = [shapely.LineString(G.edges[e]["coords"]) for e in G.edges]
+    return [p for p in shapely.get_parts(shapely.polygonize(lines)) if p.area > 1.0]
+
+
+def fill_to_density(
+    G: nx.Graph,
+    target: int,
+    field: TensorField,
+    rng: np.random.Generator,
+    min_edge: float,
+    min_angle: float,
+) -> None:
+    """Split blocks until ``road_node_count(G) >= target - 1`` or no block can be split."""
+    heap = [(-f.area, k, f) for k, f in enumerate(sorted(faces(G), key=lambda f: f.bounds))]
+    heapq.heapify(heap)
+    counter = len(heap)
+    while heap and road_node_count(G) < target - 1:
+        _, _, face = heapq.heappop(heap)
+        nodes = np.array([G.nodes[n]["xy"] for n in G.nodes])
+        chord = split_chord(face, nodes, field, rng, min_edge, min_angle)
+        if chord is None:
+            continue
+        if not insert_chord(G, chord, min_edge):
+            continue
+        for part in shapely.get_parts(shapely.ops.split(face, LineString(chord))):
+            if part.area > 1.0:
+                heapq.heappush(heap, (-part.area, counter, part))
+                counter += 1
+
+
+def split_chord(face: Polygon, nodes: np.ndarray, field: TensorField, rng, min_edge, min_angle):
+    """A local road across ``face``: traced both ways from an interior point along the tensor
+    axis that cuts the face's long side, clipped where it first leaves the face. A few start
+    points and both axes are tried before the block is given up."""
+    rect = face.minimum_rotated_rectangle
+    rc = np.asarray(rect.exterior.coords)
+    sides = np.diff(rc[:3], axis=0)
+    long_side = sides[int(np.argmax(np.hypot(*sides.T)))]
+    along = long_side / max(np.hypot(*long_side), 1e-9)
+    across = np.array([-along[1], along[0]])
+    centre = np.asarray(face.representative_point().coords[0])
+    centroid = np.asarray(face.centroid.coords[0])
+    if face.contains(Point(centroid)):
+        centre = centroid
+    for attempt in range(6):
+        shift = 0.0 if attempt == 0 else rng.uniform(-0.3, 0.3) * np.hypot(*long_side)
+        start = centre + shift * along
+        if not face.contains(Point(start)):
+            continue
+        wanted = across if attempt < 4 else along
+        d0 = choose_axis(field, start, wanted)
+        halves = [_trace_in_face(face, start, d, field) for d in (d0, -d0)]
+        if any(h is None for h in halves):
+            continue
+        chord = np.vstack([halves[1][::-1], halves[0][1:]])
+        if _ends_ok(face, nodes, chord, min_edge, min_angle):
+            return chord
+    return None
+
+
+def _trace_in_face(face: Polygon, start, d, field: TensorField, max_steps: int = 400):
+    """Follow the field from ``start`` until the path crosses the face boundary."""
+    boundary = face.exterior
+    pts = [np.asarray(start, float)]
+    p, d = pts[0], np.asarray(d, float)
+    for _ in range(max_steps):
+        a = choose_axis(field, p, d)
+        d = clamp_turn(d, a, math.radians(8.0))
+        q = p + STEP * d
+        seg = LineString([p, q])
+        if seg.intersects(boundary):
+            hit = seg.intersection(boundary)
+            hit_pts = [np.asarray(g.coords[0]) for g in shapely.get_parts(hit)]
+            end = min(hit_pts, key=lambda h: np.hypot(*(h - p)))
+            pts.append(end)
+            return np.array(pts)
+        pts.append(q)
+        p = q
+    return None
+
+
+def _ends_ok(face: Polygon, nodes: np.ndarray, chord, min_edge: float, min_angle: float) -> bool:
+    """Both ends meet the block edge at a decent angle and away from existing junctions."""
+    if LineString(chord).length < 3 * min_edge:
+        return False
+    for end, inner in ((chord[0], chord[1]), (chord[-1], chord[-2])):
+        if np.min(np.hypot(*(nodes - end).T)) < 2.5 * min_edge:
+            return False
+        ring = face.exterior
+        s = ring.project(Point(end))
+        a = np.asarray(ring.interpolate(max(s - 1.0, 0)).coords[0])
+        b = np.asarray(ring.interpolate(min(s + 1.0, ring.length)).coords[0])
+        tangent = (b - a) / max(np.hypot(*(b - a)), 1e-9)
+        road = (inner - end) / max(np.hypot(*(inner - end)), 1e-9)
+        if abs(float(tangent @ road)) > math.cos(math.radians(min_angle)):
+            return False
+    return True
+
+
+def insert_chord(G: nx.Graph, chord: np.ndarray, min_edge: float) -> bool:
+    """Split the two roads the chord ends on and add the chord as a local road between them.
+
+    Refused when the chord touches any road other than the two it ends on (a dead-end road
+    inside the block, say), so the graph stays planar without re-noding."""
+    edges = list(G.edges)
+    lines = np.array([LineString(G.edges[e]["coords"]) for e in edges])
+    line = LineString(chord)
+    touching = np.flatnonzero(shapely.dwithin(lines, line, 0.5))
+    ends = []
+    for point in (chord[0], chord[-1]):
+        dist = shapely.distance(lines[touching], Point(point))
+        k = int(np.argmin(dist)) if len(dist) else -1
+        if k < 0 or dist[k] > 1.0:
+            return False
+        ends.append(edges[touching[k]])
+    if len(touching) > 2 or ends[0] == ends[1]:
+        return False
+    nodes = [split_edge_at(G, e, point, min_edge) for e, point in zip(ends, (chord[0], chord[-1]))]
+    u, v = nodes
+    if u == v or G.has_edge(u, v):
+        return False
+    add_road(G, u, v, chord, "local")
+    return True
+
+
+def split_edge_at(G: nx.Graph, edge, point, tolerance: float):
+    """Insert a node on road ``edge`` at ``point`` (or reuse an end node within tolerance)."""
+    u, v = edge
+    coords = edge_coords(G, u, v)
+    line = LineString(coords)
+    s = line.project(Point(point))
+    if s < tolerance:
+        return u
+    if line.length - s < tolerance:
+        return v
+    cls = G.edges[u, v]["road_class"]
+    first = shapely.ops.substring(line, 0, s)
+    second = shapely.ops.substring(line, s, line.length)
+    node = max(G.nodes) + 1
+    G.add_node(node, xy=tuple(np.asarray(second.coords[0])))
+    G.remove_edge(u, v)
+    add_road(G, u, node, np.asarray(first.coords), cls)
+    add_road(G, node, v, np.asarray(second.coords), cls)
+    return node
+
+
+def prune_to_density(G: nx.Graph, target: int) -> None:
+    """Remove non-bridge local roads, shortest first, while above ``target`` + 1 road nodes."""
+    while road_node_count(G) > target + 1:
+        bridges = set(nx.bridges(G))
+        candidates = sorted(
+            (edge_length(G, u, v), u, v)
+            for u, v in G.edges
+            if G.edges[u, v]["road_class"] != "arterial"
+            and (u, v) not in bridges
+            and (v, u) not in bridges
+            and G.degree(u) >= 3
+            and G.degree(v) >= 3
+        )
+        if not candidates:
+            return
+        _, u, v = candidates[0]
+        G.remove_edge(u, v)

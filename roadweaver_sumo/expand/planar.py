@@ -1,0 +1,208 @@
+"""Turn traced polylines into a planar RoadGraph, and keep it clean (paper §III-C, clean-up).
+
+Planarity is guaranteed by noding: shapely's overlay splits every polyline wherever it meets
+another, so every crossing of two roads becomes a junction. Clean-up then removes what a road
+engineer would not draw: near-duplicate junctions, slivers of road, junction angles that are
+too sharp, stubs that run off the map, and fragments outside the largest component.
+"""
+
+from __future__ import annotations
+
+import math
+
+import networkx as nx
+import numpy as np
+import shapely
+from scipy.spatial import cKDTree
+
+from ..roadgraph import ROAD_CLASSES, add_road, edge_coords, edge_length, new_road_graph
+
+GRID = 0.01  # noding precision, metres
+CLASS_RANK = {name: rank for rank, name in enumerate(reversed(ROAD_CLASSES))}  # local=0
+
+
+def higher_class(a: str, b: str) -> str:
+    return a if CLASS_RANK[a] >= CLASS_RANK[b] else b
+
+
+def build_planar_graph(roads: list[tuple[np.ndarray, str]], width: float, height: float):
+    """Node all polylines against each other and build the graph of the pieces."""
+    G = new_road_graph(width, height)
+    lines = [shapely.LineString(c) for c, _ in roads if len(c) >= 2]
+    classes = [cls for c, cls in roads if len(c) >= 2]
+    lines_ok = [(ln, cls) for ln, cls in zip(lines, classes) if ln.length > GRID]
+    if not lines_ok:
+        return G
+    noded = shapely.union_all([ln for ln, _ in lines_ok], grid_size=GRID)
+    pieces = list(getattr(noded, "geoms", [noded]))
+    tree = shapely.STRtree([ln for ln, _ in lines_ok])
+    keys = {}
+    for piece in pieces:
+        for pt in (piece.coords[0], piece.coords[-1]):
+            keys.setdefault((round(pt[0], 2), round(pt[1], 2)), None)
+    for nid, key in enumerate(sorted(keys)):
+        keys[key] = nid
+        G.add_node(nid, xy=key)
+    pieces.sort(key=lambda g: (g.coords[0], g.coords[-1], g.length))
+    for piece in pieces:
+        mid = piece.interpolate(0.5, normalized=True)
+        near = tree.query(mid, predicate="dwithin", distance=0.05)
+        cls = "local"
+        for k in sorted(near):
+            cls = higher_class(cls, lines_ok[k][1])
+        c = np.asarray(piece.coords)
+        u = keys[(round(c[0][0], 2), round(c[0][1], 2))]
+        v = keys[(round(c[-1][0], 2), round(c[-1][1], 2))]
+        add_piece(G, u, v, c, cls)
+    return G
+
+
+def add_piece(G: nx.Graph, u: int, v: int, coords: np.ndarray, cls: str) -> None:
+    """Add a road u-v; a self-loop or a second road between the same nodes gets a shape node in
+    its middle so the graph stays simple (SUMO and the lane builder need distinct node pairs)."""
+    if (u == v or G.has_edge(u, v)) and len(coords) >= 3:
+        k = len(coords) // 2
+        m = max(G.nodes) + 1
+        G.add_node(m, xy=(float(coords[k][0]), float(coords[k][1])))
+        add_road(G, u, m, coords[: k + 1], cls)
+        add_road(G, m, v, coords[k:], cls)
+    elif u != v and not G.has_edge(u, v):
+        add_road(G, u, v, coords, cls)
+
+
+def merge_nodes(G: nx.Graph, keep: int, drop: int) -> None:
+    """Move every road of ``drop`` onto ``keep`` and delete ``drop``."""
+    for w in list(G.neighbors(drop)):
+        data = G.edges[drop, w]
+        coords = edge_coords(G, drop, w).copy()
+        G.remove_edge(drop, w)
+        if w == keep:
+            continue
+        if G.has_edge(keep, w):
+            old = G.edges[keep, w]
+            old["road_class"] = higher_class(old["road_class"], data["road_class"])
+            continue
+        coords[0] = G.nodes[keep]["xy"]
+        add_road(G, keep, w, coords, data["road_class"])
+    G.remove_node(drop)
+
+
+def contract_short_edges(G: nx.Graph, min_length: float) -> None:
+    """Merge the two ends of every road shorter than ``min_length`` (the busier end stays)."""
+    changed = True
+    while changed:
+        changed = False
+        for u, v in sorted(G.edges):
+            if G.has_edge(u, v) and edge_length(G, u, v) < min_length:
+                keep, drop = (u, v) if G.degree(u) >= G.degree(v) else (v, u)
+                merge_nodes(G, keep, drop)
+                changed = True
+
+
+def merge_close_nodes(G: nx.Graph, radius: float) -> None:
+    """Merge junctions closer than ``radius`` even when no road joins them directly."""
+    while True:
+        nodes = sorted(G.nodes)
+        if len(nodes) < 2:
+            return
+        pts = np.array([G.nodes[n]["xy"] for n in nodes])
+        pairs = sorted(cKDTree(pts).query_pairs(radius))
+        if not pairs:
+            return
+        i, j = pairs[0]
+        u, v = nodes[i], nodes[j]
+        keep, drop = (u, v) if G.degree(u) >= G.degree(v) else (v, u)
+        merge_nodes(G, keep, drop)
+
+
+def dissolve_degree_two(G: nx.Graph) -> None:
+    """Join the two roads at a degree-2 node into one, unless that would duplicate a road."""
+    for n in sorted(G.nodes):
+        if G.degree(n) != 2:
+            continue
+        a, b = sorted(G.neighbors(n))
+        if a == b or G.has_edge(a, b):
+            continue
+        ca, cb = edge_coords(G, a, n), edge_coords(G, n, b)
+        cls = higher_class(G.edges[a, n]["road_class"], G.edges[n, b]["road_class"])
+        G.remove_node(n)
+        add_road(G, a, b, np.vstack([ca, cb[1:]]), cls)
+
+
+def departure_angles(G: nx.Graph, n: int, probe: float = 20.0) -> list[tuple[float, int]]:
+    """(bearing, neighbour) of each road leaving ``n``, measured ``probe`` metres out."""
+    out = []
+    for w in G.neighbors(n):
+        c = edge_coords(G, n, w)
+        line = shapely.LineString(c)
+        q = line.interpolate(min(probe, line.length * 0.5))
+        out.append((math.atan2(q.y - c[0][1], q.x - c[0][0]), w))
+    return sorted(out)
+
+
+def remove_sharp_angles(G: nx.Graph, min_angle_deg: float) -> int:
+    """Drop the minor road of every pair meeting at a junction at less than ``min_angle_deg``."""
+    removed = 0
+    limit = math.radians(min_angle_deg)
+    for n in sorted(G.nodes):
+        if n not in G or G.degree(n) < 3:
+            continue
+        angles = departure_angles(G, n)
+        for k, (a1, w1) in enumerate(angles):
+            a2, w2 = angles[(k + 1) % len(angles)]
+            gap = (a2 - a1) % (2 * math.pi)
+            if gap < limit and G.has_edge(n, w1) and G.has_edge(n, w2):
+                G.remove_edge(*min(((n, w1), (n, w2)), key=lambda e: _edge_weight(G, *e)))
+                removed += 1
+                break
+    return removed
+
+
+def _edge_weight(G, u, v):
+    return (CLASS_RANK[G.edges[u, v]["road_class"]], edge_length(G, u, v))
+
+
+def prune_stubs(G: nx.Graph, max_length: float, margin: float) -> None:
+    """Remove dead-end roads shorter than ``max_length`` or ending within ``margin`` of the map
+    border (roads cut off by the border), repeatedly, so chains of stubs go too."""
+    width, height = G.graph["width"], G.graph["height"]
+
+    def at_border(n):
+        x, y = G.nodes[n]["xy"]
+        return min(x, y, width - x, height - y) < margin
+
+    changed = True
+    while changed:
+        changed = False
+        for n in sorted(G.nodes):
+            if n in G and G.degree(n) == 1:
+                (w,) = G.neighbors(n)
+                if at_border(n) or edge_length(G, n, w) < max_length:
+                    G.remove_node(n)
+                    changed = True
+            elif n in G and G.degree(n) == 0:
+                G.remove_node(n)
+
+
+def keep_largest_component(G: nx.Graph) -> None:
+    """The largest-connected-component filter."""
+    if G.number_of_nodes() == 0:
+        return
+    comps = sorted(nx.connected_components(G), key=lambda c: (len(c), -min(c)), reverse=True)
+    for comp in comps[1:]:
+        G.remove_nodes_from(comp)
+
+
+def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: float) -> None:
+    """The whole clean-up, repeated until nothing changes."""
+    for _ in range(10):
+        before = (G.number_of_nodes(), G.number_of_edges())
+        merge_close_nodes(G, min_edge * 0.8)
+        contract_short_edges(G, min_edge)
+        while remove_sharp_angles(G, min_angle):
+            pass
+        prune_stubs(G, stub, margin)
+        keep_largest_component(G)
+        dissolve_degree_two(G)
+        if (G.number_of_nodes(), G.number_of_edges()) == before:
+            break

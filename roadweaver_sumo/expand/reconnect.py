@@ -1,0 +1,92 @@
+"""A* reconnection of dangling road ends over the road-field cost map (paper §III-C).
+
+Each dead end that is not at the map border searches, within a window around it, the cheapest
+path to any other road; cells the skeleton's road field marks as likely road are cheap, so the
+new link follows the layout the skeleton suggests. scikit-image's minimum-cost-path search does
+the graph search.
+"""
+
+from __future__ import annotations
+
+import networkx as nx
+import numpy as np
+import shapely
+from shapely.ops import nearest_points
+from skimage.graph import MCP_Geometric
+
+from ..raster import rasterise_polylines
+
+
+def dangling_ends(G: nx.Graph, margin: float) -> list[int]:
+    """Degree-1 nodes farther than ``margin`` from the map border."""
+    width, height = G.graph["width"], G.graph["height"]
+    out = []
+    for n, deg in sorted(G.degree()):
+        x, y = G.nodes[n]["xy"]
+        if deg == 1 and min(x, y, width - x, height - y) >= margin:
+            out.append(n)
+    return out
+
+
+def reconnect_dangles(
+    G: nx.Graph, cost: np.ndarray, res: float, radius: float, margin: float
+) -> list[np.ndarray]:
+    """Polylines linking dangling ends to the nearest reachable road (not yet inserted)."""
+    links = []
+    edges = sorted(G.edges)
+    lines = [shapely.LineString(G.edges[e]["coords"]) for e in edges]
+    tree = shapely.STRtree(lines)
+    position = {e: k for k, e in enumerate(edges)}
+    road_mask = _rasterise_edges(G, cost.shape, res)
+    for n in dangling_ends(G, margin):
+        (w,) = G.neighbors(n)
+        own = rasterise_polylines([G.edges[n, w]["coords"]], cost.shape, res)
+        path = _cheapest_link(np.asarray(G.nodes[n]["xy"]), cost, road_mask & ~own, res, radius)
+        if path is not None:
+            path = _snap_end(path, lines, tree, position.get((n, w), position.get((w, n))))
+        if path is not None:
+            links.append(path)
+    return links
+
+
+def _cheapest_link(p, cost, targets, res, radius):
+    ny, nx_ = cost.shape
+    r = int(radius / res)
+    ci, cj = int(p[1] / res), int(p[0] / res)
+    i0, i1 = max(ci - r, 0), min(ci + r + 1, ny)
+    j0, j1 = max(cj - r, 0), min(cj + r + 1, nx_)
+    window_targets = targets[i0:i1, j0:j1]
+    if not window_targets.any():
+        return None
+    mcp = MCP_Geometric(cost[i0:i1, j0:j1])
+    start = (min(max(ci - i0, 0), i1 - i0 - 1), min(max(cj - j0, 0), j1 - j0 - 1))
+    ends = np.argwhere(window_targets)
+    costs, _ = mcp.find_costs([start], ends, find_all_ends=False)
+    reached = np.where(window_targets, costs, np.inf)
+    if not np.isfinite(reached).any():
+        return None
+    end = np.unravel_index(int(np.argmin(reached)), reached.shape)
+    cells = np.array(mcp.traceback(end))
+    xy = (cells[:, ::-1] + [j0, i0] + 0.5) * res
+    xy[0] = p
+    line = shapely.LineString(xy).simplify(res * 0.75)
+    if line.length > radius * 1.5 or line.length < res:
+        return None
+    return np.asarray(line.coords)
+
+
+def _rasterise_edges(G: nx.Graph, shape, res: float) -> np.ndarray:
+    return rasterise_polylines([G.edges[e]["coords"] for e in G.edges], shape, res)
+
+
+def _snap_end(path: np.ndarray, lines: list, tree, own: int) -> np.ndarray | None:
+    """Move the path's last point onto the nearest road other than the dangle's own."""
+    end = shapely.Point(path[-1])
+    near = [k for k in tree.query(end, predicate="dwithin", distance=20.0) if k != own]
+    if not near:
+        return None
+    k = min(near, key=lambda k: (lines[k].distance(end), k))
+    hit = nearest_points(lines[k], end)[0]
+    out = path.copy()
+    out[-1] = (hit.x, hit.y)
+    return out

@@ -1,0 +1,122 @@
+"""The scenario specification: everything needed to regenerate a scenario folder byte for byte."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .errors import RoadweaverError
+
+STYLES = ("grid", "radial", "organic", "mixed")
+SKELETONS = ("procedural",)
+MAX_SIDE_M = 50_000.0
+MIN_SIDE_M = 200.0
+DEFAULT_GEO_ORIGIN = (48.137, 11.575)  # lat, lon: only a label for the local metric frame
+
+# Stage ids for np.random.default_rng([seed, STAGE]): each stage draws from its own stream, so
+# changing one stage never shifts the random numbers of another.
+STAGE_SKELETON, STAGE_GROWTH, STAGE_RECONNECT, STAGE_FILL = 1, 2, 3, 4
+
+
+@dataclass(frozen=True)
+class ScenarioSpec:
+    """What the user asked for. ``width``/``height`` in metres, ``density`` in road nodes per km²."""
+
+    density: float
+    vehicles: int
+    width: float = 2000.0
+    height: float = 2000.0
+    seed: int = 0
+    style: str = "mixed"
+    skeleton: str = "procedural"
+    duration: float = 3600.0
+    geo_origin: tuple[float, float] = DEFAULT_GEO_ORIGIN
+    version: str = field(default=__version__)
+
+    def __post_init__(self) -> None:
+        _check_positive_number("density", self.density)
+        if self.density > 400:
+            raise RoadweaverError(f"--density {self.density:g} is above 400 road nodes/km²")
+        if not isinstance(self.vehicles, int) or self.vehicles < 0:
+            raise RoadweaverError(f"--vehicles must be a whole number >= 0, got {self.vehicles!r}")
+        for name in ("width", "height"):
+            side = getattr(self, name)
+            _check_positive_number(f"map {name}", side)
+            if not MIN_SIDE_M <= side <= MAX_SIDE_M:
+                raise RoadweaverError(
+                    f"map {name} {side:g} m is outside {MIN_SIDE_M:g}..{MAX_SIDE_M:g} m"
+                )
+        if self.style not in STYLES:
+            raise RoadweaverError(f"unknown style {self.style!r}; choose one of {', '.join(STYLES)}")
+        if self.skeleton not in SKELETONS:
+            raise RoadweaverError(
+                f"unknown skeleton {self.skeleton!r}; choose one of {', '.join(SKELETONS)}"
+            )
+        if not isinstance(self.seed, int) or self.seed < 0:
+            raise RoadweaverError(f"--seed must be a whole number >= 0, got {self.seed!r}")
+        _check_positive_number("--duration", self.duration)
+
+    @property
+    def area_km2(self) -> float:
+        return self.width * self.height / 1e6
+
+    @property
+    def target_road_nodes(self) -> int:
+        return max(4, round(self.density * self.area_km2))
+
+    @property
+    def name(self) -> str:
+        """Folder name that tells the scenarios of a suite apart at a glance."""
+        return (
+            f"{self.style}-d{self.density:g}-{self.width:g}x{self.height:g}-s{self.seed}"
+            f"-v{self.vehicles}"
+        )
+
+    @property
+    def netconvert_template(self) -> str:
+        """Sparse maps are suburban (priority junctions); denser ones urban (traffic lights)."""
+        return "urban" if self.density >= 20 else "suburban"
+
+    def rng(self, stage: int) -> np.random.Generator:
+        return np.random.default_rng([self.seed, stage])
+
+    def to_json(self) -> str:
+        data = asdict(self)
+        data["geo_origin"] = list(self.geo_origin)
+        return json.dumps(data, indent=2, sort_keys=True) + "\n"
+
+    @classmethod
+    def from_json_file(cls, path: Path) -> "ScenarioSpec":
+        try:
+            data = json.loads(Path(path).read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as exc:
+            raise RoadweaverError(f"cannot read spec {path}: {exc}") from None
+        data["geo_origin"] = tuple(data.get("geo_origin", DEFAULT_GEO_ORIGIN))
+        known = {f for f in cls.__dataclass_fields__}
+        return cls(**{k: v for k, v in data.items() if k in known})
+
+
+def parse_size(text: str) -> tuple[float, float]:
+    """``"2000"`` -> (2000, 2000); ``"3000x2000"`` -> (3000, 2000), metres."""
+    match = re.fullmatch(r"\s*([0-9.eE+]+)\s*(?:[xX]\s*([0-9.eE+]+))?\s*", str(text))
+    if not match:
+        raise RoadweaverError(f"--size {text!r} is not a size; use e.g. 2000 or 3000x2000 (metres)")
+    try:
+        width = float(match.group(1))
+        height = float(match.group(2)) if match.group(2) else width
+    except ValueError:
+        raise RoadweaverError(f"--size {text!r} is not a size; use e.g. 2000 or 3000x2000") from None
+    return width, height
+
+
+def _check_positive_number(name: str, value) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise RoadweaverError(f"{name} must be a number, got {value!r}")
+    if not math.isfinite(value) or value <= 0:
+        raise RoadweaverError(f"{name} must be > 0, got {value:g}")

@@ -1,0 +1,215 @@
+"""Tracing roads through a tensor field (paper §III-C, Eq. (3)-(5)) against the roads already drawn.
+
+One tracer serves the skeleton (arterials that pass through each other) and the expansion
+(collectors and locals that end on the first road they meet). A front advances by Euler steps;
+each step picks the tensor eigen-direction closest to the current heading, blends it with the
+heading (inertia), clamps the turn, adds style jitter, and then looks ahead for existing roads.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from dataclasses import dataclass
+
+import numpy as np
+
+from .tensor_field import TensorField
+
+
+@dataclass(frozen=True)
+class GrowthParams:
+    """Knobs of one family of roads. Lengths in metres, angles in degrees."""
+
+    step: float = 10.0
+    max_turn: float = 15.0
+    w_tensor: float = 1.0
+    w_inertia: float = 0.8
+    jitter: float = 1.0
+    snap_radius: float = 25.0
+    parallel_gap: float = 40.0  # a road running alongside closer than this stops the front
+    max_length: float = 5000.0
+    min_angle: float = 35.0  # a front meeting a road at a shallower angle stops instead
+    pass_through: bool = False  # arterials cross other roads; others end on them
+
+
+@dataclass
+class Trace:
+    """A traced polyline and why it ended: 'boundary', 'snap', 'blocked', 'loop' or 'length'."""
+
+    coords: np.ndarray
+    end: str
+
+
+class SegmentIndex:
+    """A dynamic uniform-grid index of road segments (shapely's STRtree cannot grow)."""
+
+    def __init__(self, cell: float = 50.0):
+        self.cell = cell
+        self.cells: dict[tuple[int, int], list[int]] = defaultdict(list)
+        self.a = np.zeros((256, 2))
+        self.b = np.zeros((256, 2))
+        self.road = np.zeros(256, dtype=int)
+        self.size = 0
+
+    def add(self, coords: np.ndarray, road_id: int) -> None:
+        n = len(coords) - 1
+        while self.size + n > len(self.a):
+            for name in ("a", "b", "road"):
+                arr = getattr(self, name)
+                setattr(self, name, np.concatenate([arr, np.zeros_like(arr)]))
+        first = self.size
+        self.a[first : first + n] = coords[:-1]
+        self.b[first : first + n] = coords[1:]
+        self.road[first : first + n] = road_id
+        self.size += n
+        lo = np.floor(np.minimum(coords[:-1], coords[1:]) / self.cell).astype(int)
+        hi = np.floor(np.maximum(coords[:-1], coords[1:]) / self.cell).astype(int)
+        for k in range(n):
+            for cx in range(lo[k, 0], hi[k, 0] + 1):
+                for cy in range(lo[k, 1], hi[k, 1] + 1):
+                    self.cells[(cx, cy)].append(first + k)
+
+    def near(self, p: np.ndarray, radius: float) -> np.ndarray:
+        """Ids of segments that may lie within ``radius`` of ``p`` (a superset)."""
+        x0, y0 = int((p[0] - radius) // self.cell), int((p[1] - radius) // self.cell)
+        x1, y1 = int((p[0] + radius) // self.cell), int((p[1] + radius) // self.cell)
+        found: set[int] = set()
+        for cx in range(x0, x1 + 1):
+            for cy in range(y0, y1 + 1):
+                found.update(self.cells.get((cx, cy), ()))
+        return np.array(sorted(found), dtype=int)
+
+    def arrays(self, ids: np.ndarray):
+        return self.a[ids], self.b[ids], self.road[ids]
+
+
+def choose_axis(field: TensorField, p: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Paper Eq. (3): the eigen-direction among ±e_major, ±e_minor best aligned with ``d``."""
+    e = field.major_at(p[0], p[1])
+    candidates = np.array([e, -e, [-e[1], e[0]], [e[1], -e[0]]])
+    return candidates[int(np.argmax(candidates @ d))]
+
+
+def clamp_turn(d_old: np.ndarray, d_new: np.ndarray, max_turn_rad: float) -> np.ndarray:
+    """The operator C_θmax of Eq. (4): rotate ``d_new`` back to at most θmax away from ``d_old``."""
+    ang = math.atan2(d_old[0] * d_new[1] - d_old[1] * d_new[0], float(d_old @ d_new))
+    ang = max(-max_turn_rad, min(max_turn_rad, ang))
+    return rotate(d_old, ang)
+
+
+def rotate(v: np.ndarray, ang: float) -> np.ndarray:
+    c, s = math.cos(ang), math.sin(ang)
+    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+
+
+def next_direction(field, p, d, params: GrowthParams, rng: np.random.Generator) -> np.ndarray:
+    """Eq. (4) then the style perturbation Δφ."""
+    a = choose_axis(field, p, d)
+    blend = params.w_tensor * a + params.w_inertia * d
+    norm = np.hypot(*blend)
+    cand = blend / norm if norm > 1e-9 else d
+    cand = clamp_turn(d, cand, math.radians(params.max_turn))
+    if params.jitter > 0:
+        cand = rotate(cand, math.radians(rng.normal(0.0, params.jitter)))
+    return cand
+
+
+def _ray_hits(p, d, reach, a, b):
+    """Distances along the ray p + t d (0 < t <= reach) to segments a-b, inf where none."""
+    e = b - a
+    denom = d[0] * e[:, 1] - d[1] * e[:, 0]
+    w = a - p
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (w[:, 0] * e[:, 1] - w[:, 1] * e[:, 0]) / denom
+        u = (w[:, 0] * d[1] - w[:, 1] * d[0]) / denom
+    ok = (np.abs(denom) > 1e-12) & (t > 1e-6) & (t <= reach) & (u >= 0) & (u <= 1)
+    return np.where(ok, t, np.inf)
+
+
+def point_segment_distance(p, a, b):
+    e = b - a
+    ll = np.einsum("ij,ij->i", e, e)
+    t = np.clip(np.einsum("ij,ij->i", p - a, e) / np.where(ll > 0, ll, 1.0), 0, 1)
+    proj = a + t[:, None] * e
+    return np.hypot(*(p - proj).T)
+
+
+def trace(
+    start: np.ndarray,
+    direction: np.ndarray,
+    field: TensorField,
+    index: SegmentIndex,
+    bounds: tuple[float, float],
+    params: GrowthParams,
+    rng: np.random.Generator,
+    ignore_roads: frozenset = frozenset(),
+    ignore_for: float = 0.0,
+) -> Trace:
+    """Grow one front from ``start``; roads in ``ignore_roads`` are invisible for the first
+    ``ignore_for`` metres (the road a front is seeded on)."""
+    width, height = bounds
+    p = np.asarray(start, dtype=float)
+    d = np.asarray(direction, dtype=float) / np.hypot(*direction)
+    pts = [p.copy()]
+    travelled = 0.0
+    min_cos = math.cos(math.radians(params.min_angle))
+    while True:
+        d = next_direction(field, p, d, params, rng)
+        reach = params.step + params.snap_radius
+        ids = index.near(p, reach)
+        a, b, road = index.arrays(ids)
+        if travelled < ignore_for and len(road):
+            keep = ~np.isin(road, list(ignore_roads))
+            a, b = a[keep], b[keep]
+        if len(a):
+            seg_dir = (b - a) / np.maximum(np.hypot(*(b - a).T), 1e-9)[:, None]
+            shallow = np.abs(seg_dir @ d) > min_cos
+            side = point_segment_distance(p, a, b)
+            if np.any(shallow & (side < params.parallel_gap)) and travelled > 0:
+                return Trace(np.array(pts), "blocked")
+            hits = _ray_hits(p, d, reach, a, b)
+            k = int(np.argmin(hits))
+            if np.isfinite(hits[k]) and not params.pass_through:
+                if shallow[k]:
+                    return Trace(np.array(pts), "blocked")
+                pts.append(p + hits[k] * d)
+                return Trace(np.array(pts), "snap")
+        q = p + params.step * d
+        own = _meets_itself(pts, q, params)
+        if own is not None:
+            return own
+        if not (0 <= q[0] <= width and 0 <= q[1] <= height):
+            pts.append(_clip_to_box(p, q, width, height))
+            return Trace(np.array(pts), "boundary")
+        p = q
+        pts.append(p.copy())
+        travelled += params.step
+        if travelled >= params.max_length:
+            return Trace(np.array(pts), "length")
+
+
+def _meets_itself(pts: list, q: np.ndarray, params: GrowthParams) -> Trace | None:
+    """A front that comes back to its own start closes a ring; one that comes back alongside
+    its own earlier path stops (streamlines of radial fields would otherwise spiral forever)."""
+    recent = int(3 * params.parallel_gap / params.step) + 2
+    if len(pts) <= recent:
+        return None
+    older = np.asarray(pts[:-recent])
+    dist = np.hypot(older[:, 0] - q[0], older[:, 1] - q[1])
+    if dist[0] < params.snap_radius:
+        return Trace(np.array(pts + [pts[0]]), "loop")
+    if dist.min() < params.parallel_gap:
+        return Trace(np.array(pts), "blocked")
+    return None
+
+
+def _clip_to_box(p, q, width, height) -> np.ndarray:
+    """The point where segment p-q leaves the box [0, width] x [0, height]."""
+    t = 1.0
+    for k, hi in ((0, width), (1, height)):
+        if q[k] < 0:
+            t = min(t, p[k] / (p[k] - q[k]))
+        elif q[k] > hi:
+            t = min(t, (hi - p[k]) / (q[k] - p[k]))
+    return p + t * (q - p)
