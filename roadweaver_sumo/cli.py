@@ -1,0 +1,126 @@
+"""Command line: ``roadweaver-sumo make-scenario`` and ``roadweaver-sumo validate``.
+
+Every user error ends in one line on stderr, ``roadweaver-sumo: error: ...``, and a non-zero exit
+(2 for bad input, 1 for a scenario that fails its thresholds); never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from . import __version__
+from .errors import RoadweaverError
+from .spec import SKELETONS, STYLES, ScenarioSpec, parse_size
+
+PROG = "roadweaver-sumo"
+EXIT_FAILED_CHECKS = 1
+EXIT_BAD_INPUT = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a usage error in one line instead of usage text plus error."""
+
+    def error(self, message: str):  # noqa: D401 - argparse API
+        raise RoadweaverError(message)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog=PROG, description="Lane-level road networks as SUMO scenarios.")
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    make = sub.add_parser("make-scenario", help="generate a map and a validated SUMO scenario")
+    make.add_argument("--density", type=float, required=True, help="road nodes per km²")
+    make.add_argument("--vehicles", type=int, required=True, help="number of vehicles")
+    make.add_argument("--size", default="2000", help="map size in metres: 2000 or 3000x2000")
+    make.add_argument("--seed", type=int, default=0)
+    make.add_argument("--style", default="mixed", help=f"one of {', '.join(STYLES)}")
+    make.add_argument("--skeleton", default="procedural", help=f"one of {', '.join(SKELETONS)}")
+    make.add_argument("--duration", type=float, default=3600.0, help="demand horizon, seconds")
+    make.add_argument("--out", type=Path, help="output folder (default ./scenarios/<name>)")
+    make.add_argument("--force", action="store_true", help="replace an existing output folder")
+    make.add_argument("--no-validate", action="store_true", help="skip the libsumo validation")
+    make.add_argument("--json", action="store_true", help="print the report as JSON")
+
+    val = sub.add_parser("validate", help="re-run the validation of a scenario folder")
+    val.add_argument("dir", type=Path)
+    val.add_argument("--json", action="store_true", help="print the report as JSON")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        if args.command == "make-scenario":
+            return _make_scenario(args)
+        return _validate(args)
+    except RoadweaverError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted; nothing was left half-written", file=sys.stderr)
+        return 130
+
+
+def _make_scenario(args) -> int:
+    from .pipeline import make_scenario
+
+    width, height = parse_size(args.size)
+    spec = ScenarioSpec(
+        density=args.density,
+        vehicles=args.vehicles,
+        width=width,
+        height=height,
+        seed=args.seed,
+        style=args.style,
+        skeleton=args.skeleton,
+        duration=args.duration,
+    )
+    out = args.out if args.out is not None else Path("scenarios") / spec.name
+    log = (lambda msg: None) if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
+    result = make_scenario(spec, out, force=args.force, validate=not args.no_validate, log=log)
+    return _finish(result.out_dir, result.report, args.json)
+
+
+def _validate(args) -> int:
+    from .validate.report import validate_scenario, write_report
+
+    folder: Path = args.dir
+    if not (folder / "scenario.sumocfg").is_file():
+        raise RoadweaverError(f"{folder} is not a scenario folder (no scenario.sumocfg)")
+    report, _ = validate_scenario(folder)
+    old = folder / "report.json"
+    if old.is_file():
+        previous = json.loads(old.read_text(encoding="utf-8"))
+        if "generation" in previous:
+            report["generation"] = previous["generation"]
+    write_report(folder, report)
+    report = json.loads(old.read_text(encoding="utf-8"))
+    return _finish(folder, report, args.json)
+
+
+def _finish(folder: Path, report: dict | None, as_json: bool) -> int:
+    from .validate.report import check_thresholds, summary_lines
+
+    if report is None or report.get("validated") is False:
+        print(f"wrote {folder} (not validated)")
+        return 0
+    if as_json:
+        print(json.dumps(report, indent=2, sort_keys=True))
+    else:
+        print(f"wrote {folder}")
+        for line in summary_lines(report):
+            print(f"  {line}")
+    failures = check_thresholds(report)
+    if failures:
+        print(f"{PROG}: error: scenario fails {len(failures)} check(s): " + "; ".join(failures),
+              file=sys.stderr)
+        return EXIT_FAILED_CHECKS
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,160 @@
+"""The whole path from a spec to a validated scenario folder (DESIGN.md, "Data flow").
+
+The folder is built in a hidden temporary sibling and moved into place only when complete, so an
+interrupted or failed run never leaves something that looks like a finished scenario, and an
+existing folder is replaced only with ``force``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterator
+
+from .errors import RoadweaverError
+from .expand import expand_skeleton
+from .export.netconvert import run_netconvert
+from .export.sumo_plain import write_plain
+from .hdmap import build_hdmap, hdmap_metrics
+from .metrics import graph_metrics
+from .scenario.demand import write_demand
+from .scenario.sumocfg import write_sumocfg
+from .skeleton import make_skeleton
+from .spec import ScenarioSpec
+from .validate.report import check_thresholds, validate_scenario, write_report
+
+SPEC_FILE = "spec.json"
+TIMING_FILE = "timing.json"
+
+
+@dataclass
+class ScenarioResult:
+    """What ``make_scenario`` built: the folder, its report (None without validation), timings."""
+
+    out_dir: Path
+    report: dict | None
+    timing: dict = field(default_factory=dict)
+
+    @property
+    def failures(self) -> list[str]:
+        return check_thresholds(self.report) if self.report else []
+
+
+def make_scenario(
+    spec: ScenarioSpec,
+    out_dir: Path,
+    *,
+    force: bool = False,
+    validate: bool = True,
+    log: Callable[[str], None] = lambda msg: None,
+) -> ScenarioResult:
+    """Generate, export, and (unless ``validate`` is False) validate one scenario."""
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not force:
+        raise RoadweaverError(f"output folder {out_dir} already exists; use --force to replace it")
+    if out_dir.exists() and not out_dir.is_dir():
+        raise RoadweaverError(f"output path {out_dir} exists and is not a folder")
+    stages: dict[str, float] = {}
+    with _staging_dir(out_dir) as tmp:
+        generation = build_scenario_files(spec, tmp, stages, log)
+        report = None
+        if validate:
+            log("validating: libsumo run and routing tasks")
+            start = time.perf_counter()
+            report, sim_timing = validate_scenario(tmp)
+            stages["validate"] = time.perf_counter() - start
+            report["generation"] = generation
+            write_report(tmp, report)
+            timing = {"stages_s": stages, "validation": sim_timing}
+        else:
+            write_report(tmp, {"generation": generation, "validated": False})
+            timing = {"stages_s": stages}
+        (tmp / TIMING_FILE).write_text(_json(_rounded_timing(timing)), encoding="utf-8")
+        _move_into_place(tmp, out_dir, force)
+    if report is not None:
+        report = json.loads((out_dir / "report.json").read_text(encoding="utf-8"))
+    return ScenarioResult(out_dir, report, timing)
+
+
+def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) -> dict:
+    """Every stage up to the runnable scenario; returns the generation metrics for the report."""
+
+    @contextmanager
+    def stage(name: str) -> Iterator[None]:
+        log(f"{name} ...")
+        start = time.perf_counter()
+        yield
+        stages[name] = time.perf_counter() - start
+
+    with stage("skeleton"):
+        skeleton = make_skeleton(spec)
+    with stage("expansion"):
+        graph = expand_skeleton(spec, skeleton)
+    with stage("hdmap"):
+        hdmap = build_hdmap(graph, spec.geo_origin)
+    with stage("export"):
+        write_plain(hdmap, folder / "plain")
+        (folder / SPEC_FILE).write_text(spec.to_json(), encoding="utf-8")
+    with stage("netconvert"):
+        run_netconvert(folder, spec.netconvert_template)
+    with stage("demand"):
+        write_demand(folder, vehicles=spec.vehicles, duration=spec.duration, seed=spec.seed)
+        write_sumocfg(folder, duration=spec.duration, seed=spec.seed)
+    return {
+        "target_density": spec.density,
+        "road_graph": graph_metrics(graph, spec.area_km2),
+        "hdmap": hdmap_metrics(hdmap),
+    }
+
+
+@contextmanager
+def _staging_dir(out_dir: Path) -> Iterator[Path]:
+    """A hidden temporary folder next to ``out_dir``, removed unless moved into place."""
+    parent = out_dir.parent if str(out_dir.parent) else Path(".")
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.partial-", dir=parent))
+    except OSError as exc:
+        raise RoadweaverError(f"cannot write to {parent}: {exc.strerror or exc}") from None
+    try:
+        yield tmp
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _move_into_place(tmp: Path, out_dir: Path, force: bool) -> None:
+    """Swap the finished folder in; with ``force`` the old folder goes only after that worked."""
+    os.chmod(tmp, 0o755)  # mkdtemp makes it private; a scenario folder is an ordinary folder
+    old = None
+    if out_dir.exists():
+        if not force:
+            raise RoadweaverError(f"output folder {out_dir} already exists; use --force")
+        old = out_dir.with_name(f".{out_dir.name}.old-{os.getpid()}")
+        out_dir.rename(old)
+    try:
+        tmp.rename(out_dir)
+    except OSError as exc:
+        if old is not None:
+            old.rename(out_dir)
+        raise RoadweaverError(f"cannot move the scenario into {out_dir}: {exc.strerror}") from None
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def _rounded_timing(obj):
+    if isinstance(obj, float):
+        return round(obj, 4)
+    if isinstance(obj, dict):
+        return {k: _rounded_timing(v) for k, v in obj.items()}
+    return obj
+
+
+def _json(data) -> str:
+    return json.dumps(data, indent=2, sort_keys=True) + "\n"

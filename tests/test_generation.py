@@ -1,0 +1,71 @@
+"""Skeleton and expansion on their own: density control, planarity, clean-up and style."""
+
+import math
+
+import numpy as np
+import pytest
+
+from roadweaver_sumo.expand import MIN_ANGLE, MIN_EDGE, expand_skeleton
+from roadweaver_sumo.expand.planar import build_planar_graph, departure_angles
+from roadweaver_sumo.metrics import graph_metrics, road_node_count
+from roadweaver_sumo.roadgraph import edge_length
+from roadweaver_sumo.skeleton import make_skeleton
+from roadweaver_sumo.spec import ScenarioSpec
+
+
+def generate(**kw):
+    spec = ScenarioSpec(vehicles=0, **kw)
+    return spec, expand_skeleton(spec, make_skeleton(spec))
+
+
+@pytest.mark.parametrize("density", [10, 30, 60])
+def test_density_is_met_within_five_percent(density):
+    spec, G = generate(density=density, width=1500, height=1500, style="mixed", seed=3)
+    m = graph_metrics(G, spec.area_km2)
+    assert abs(m["density"] - density) / density <= 0.05
+    assert m["lcc_ratio"] == 1.0
+    assert m["crossings_without_junction"] == 0
+
+
+def test_clean_up_leaves_no_short_roads_or_sharp_junctions():
+    _, G = generate(density=40, width=1500, height=1500, style="organic", seed=1)
+    assert min(edge_length(G, u, v) for u, v in G.edges) >= MIN_EDGE
+    for n in G.nodes:
+        if G.degree(n) >= 3:
+            angles = [a for a, _ in departure_angles(G, n)]
+            gaps = np.diff(angles + [angles[0] + 2 * math.pi])
+            assert gaps.min() >= math.radians(MIN_ANGLE) - 1e-6
+
+
+def test_style_shows_in_bearing_entropy():
+    _, grid = generate(density=30, width=1500, height=1500, style="grid", seed=0)
+    _, organic = generate(density=30, width=1500, height=1500, style="organic", seed=0)
+    assert graph_metrics(grid, 2.25)["orientation_order"] >= 0.7
+    assert graph_metrics(organic, 2.25)["bearing_entropy"] >= 3.0
+
+
+def test_same_seed_same_graph_other_seed_other_graph():
+    _, a = generate(density=20, width=1000, height=1000, seed=5)
+    _, b = generate(density=20, width=1000, height=1000, seed=5)
+    _, c = generate(density=20, width=1000, height=1000, seed=6)
+    key = lambda G: sorted((u, v, G.edges[u, v]["coords"].tobytes()) for u, v in G.edges)  # noqa: E731
+    assert key(a) == key(b)
+    assert key(a) != key(c)
+
+
+def test_noding_turns_every_crossing_into_a_junction():
+    roads = [(np.array([(0.0, 50.0), (100.0, 50.0)]), "arterial"),
+             (np.array([(50.0, 0.0), (50.0, 100.0)]), "local")]
+    G = build_planar_graph(roads, 100, 100)
+    assert road_node_count(G) == 5
+    centre = [n for n in G.nodes if G.degree(n) == 4]
+    assert len(centre) == 1 and G.nodes[centre[0]]["xy"] == (50.0, 50.0)
+    classes = sorted(G.edges[e]["road_class"] for e in G.edges)
+    assert classes == ["arterial", "arterial", "local", "local"]
+
+
+def test_rectangular_maps_fill_their_whole_extent():
+    spec, G = generate(density=30, width=2400, height=800, style="grid", seed=2)
+    xy = np.array([G.nodes[n]["xy"] for n in G.nodes])
+    assert xy[:, 0].max() > 2300 and xy[:, 1].max() > 700
+    assert abs(road_node_count(G) / spec.area_km2 - 30) / 30 <= 0.05

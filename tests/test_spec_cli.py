@@ -1,0 +1,72 @@
+"""Spec validation and the command line's error contract (one line, non-zero, nothing written)."""
+
+import json
+
+import pytest
+
+from roadweaver_sumo.cli import main
+from roadweaver_sumo.errors import RoadweaverError
+from roadweaver_sumo.spec import ScenarioSpec, parse_size
+
+
+def test_parse_size_square_and_rectangle():
+    assert parse_size("2000") == (2000.0, 2000.0)
+    assert parse_size("3000x2000") == (3000.0, 2000.0)
+    with pytest.raises(RoadweaverError, match="not a size"):
+        parse_size("big")
+
+
+def test_spec_round_trips_through_json(tmp_path):
+    spec = ScenarioSpec(density=25, vehicles=100, width=1200, height=900, seed=4, style="grid")
+    path = tmp_path / "spec.json"
+    path.write_text(spec.to_json())
+    assert ScenarioSpec.from_json_file(path) == spec
+    assert json.loads(path.read_text())["density"] == 25
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--density", "0", "--vehicles", "5"], "density must be > 0"),
+        (["--density", "-3", "--vehicles", "5"], "density must be > 0"),
+        (["--density", "30", "--vehicles", "5", "--size", "0"], "width 0 m is outside"),
+        (["--density", "30", "--vehicles", "5", "--style", "wavy"], "unknown style 'wavy'"),
+        (["--density", "nan", "--vehicles", "5"], "density must be > 0"),
+        (["--density", "abc", "--vehicles", "5"], "invalid float value"),
+        (["--vehicles", "5"], "required: --density"),
+    ],
+)
+def test_bad_input_gives_one_line_error(tmp_path, capsys, args, message):
+    out = tmp_path / "out"
+    code = main(["make-scenario", *args, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert message in err
+    assert err.count("\n") == 1 and err.startswith("roadweaver-sumo: error:")
+    assert not out.exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_existing_folder_is_kept_without_force(tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "mine.txt").write_text("keep me")
+    code = main(["make-scenario", "--density", "30", "--vehicles", "5", "--out", str(out)])
+    assert code == 2
+    assert "already exists; use --force" in capsys.readouterr().err
+    assert (out / "mine.txt").read_text() == "keep me"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_unwritable_folder_is_a_clear_error(tmp_path, capsys):
+    blocked = tmp_path / "file"
+    blocked.write_text("not a folder")
+    code = main(["make-scenario", "--density", "30", "--vehicles", "5",
+                 "--out", str(blocked / "scenario")])
+    assert code == 2
+    assert "cannot write to" in capsys.readouterr().err
+
+
+def test_validate_refuses_a_folder_that_is_not_a_scenario(tmp_path, capsys):
+    assert main(["validate", str(tmp_path)]) == 2
+    assert "is not a scenario folder" in capsys.readouterr().err
