@@ -51,10 +51,22 @@ def fill_to_density(
             continue
         if not insert_chord(G, chord, min_edge):
             continue
-        for part in shapely.get_parts(shapely.ops.split(face, LineString(chord))):
+        for part in shapely.get_parts(shapely.ops.split(face, _extended(chord, 1.0))):
             if part.area > 1.0:
                 heapq.heappush(heap, (-part.area, counter, part))
                 counter += 1
+
+
+def _extended(chord: np.ndarray, by: float) -> LineString:
+    """The chord lengthened at both ends, so that splitting its face cannot fail on rounding
+    (the ends lie on the face boundary only to floating-point precision)."""
+    head = chord[0] + by * _unit(chord[0] - chord[1])
+    tail = chord[-1] + by * _unit(chord[-1] - chord[-2])
+    return LineString(np.vstack([head, chord, tail]))
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / max(float(np.hypot(*v)), 1e-9)
 
 
 def split_chord(face: Polygon, nodes: np.ndarray, field: TensorField, rng, min_edge, min_angle):

@@ -53,7 +53,7 @@ def grow_collectors(
     spec: ScenarioSpec, skeleton: Skeleton, field: TensorField, rng: np.random.Generator
 ) -> list[np.ndarray]:
     """Fronts seeded on both sides of every skeleton road, grown until they meet a road."""
-    spacing = 1.6 * block_size(spec.density)
+    spacing = 2.2 * block_size(spec.density)
     params = growth_params(spec, spacing, parallel_gap=0.45 * spacing, max_length=3 * spacing * 4)
     index = SegmentIndex(cell=50.0)
     for k, line in enumerate(skeleton.polylines):
