@@ -1,0 +1,36 @@
+"""Road graph to lane-level HD map, the steps of paper Algorithm 1 in order."""
+
+from __future__ import annotations
+
+import networkx as nx
+
+from .junctions import add_connectors, make_junctions
+from .lanes import build_road_lanes, make_roads
+from .model import HDMap
+from .movements import junction_plan
+from .topology import add_successor_links, repair_topology
+
+
+def build_hdmap(G: nx.Graph, geo_origin: tuple[float, float] | None = None) -> HDMap:
+    """Build the lane-level HD map of a RoadGraph (paper Algorithm 1).
+
+    ``geo_origin`` is the (lat, lon) of the local origin, written by exporters as the map's
+    geo-reference; by default ``G.graph["geo_origin"]`` if present.
+    RepairLaneGeometry needs no pass of its own: connectors end exactly on the lanes they join
+    and junction trims leave every road a lane section (see ``lanes.MAX_TRIM_SHARE``).
+    """
+    hd = HDMap(
+        width=float(G.graph["width"]),
+        height=float(G.graph["height"]),
+        geo_origin=geo_origin if geo_origin is not None else G.graph.get("geo_origin"),
+    )
+    hd.roads = make_roads(G)  # RefineRoadGraph, AssignLaneConfig
+    hd.junctions = make_junctions({n: G.nodes[n]["xy"] for n in G.nodes}, hd.roads)
+    for road in hd.roads.values():  # GenerateLaneBoundaries, ConstructDirectionalLanes
+        trims = (hd.junctions[road.from_node].radius, hd.junctions[road.to_node].radius)
+        hd.lanes.update((lane.id, lane) for lane in build_road_lanes(road, *trims))
+    plan = [(node, *entry) for node in hd.junctions for entry in junction_plan(hd, node)]
+    add_connectors(hd, plan)  # ConstructJunctionConnections, MergeLaneInstances
+    add_successor_links(hd)  # AddSuccessorLinks
+    repair_topology(hd)  # RepairTopology
+    return hd

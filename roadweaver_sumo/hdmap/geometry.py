@@ -1,0 +1,145 @@
+"""Polyline and Bezier geometry for lane construction, vectorised with numpy.
+
+Offsets are positive to the left of the driving direction (x east, y north, metres).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+MAX_MITER = 4.0  # cap on the miter stretch at sharp vertices, so offsets never spike
+BEZIER_SAMPLES = 16
+
+
+def dedupe(coords: np.ndarray, tol: float = 1e-6) -> np.ndarray:
+    """Drop consecutive points closer than ``tol`` (zero-length segments have no direction),
+    keeping both ends exactly (part of paper Algorithm 1, RefineRoadGraph)."""
+    coords = np.asarray(coords, dtype=float)
+    keep = np.ones(len(coords), dtype=bool)
+    keep[1:] = np.hypot(*np.diff(coords, axis=0).T) > tol
+    out = coords[keep]
+    out[-1] = coords[-1]  # a dropped last point moves its kept neighbour onto it
+    return out if len(out) >= 2 else coords[[0, -1]]
+
+
+def arc_lengths(coords: np.ndarray) -> np.ndarray:
+    """Cumulative arc length at each vertex, starting at 0."""
+    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(coords, axis=0).T))])
+
+
+def cut(coords: np.ndarray, s0: float, s1: float) -> np.ndarray:
+    """The part of a polyline between arc lengths ``s0 < s1``, ends interpolated."""
+    s = arc_lengths(coords)
+    inner = (s > s0) & (s < s1)
+    ends = np.column_stack([np.interp([s0, s1], s, coords[:, 0]),
+                            np.interp([s0, s1], s, coords[:, 1])])
+    return np.vstack([ends[:1], coords[inner], ends[1:]])
+
+
+def unit_tangent(vector: np.ndarray) -> np.ndarray:
+    """Unit vector(s) along ``vector`` (rows)."""
+    return vector / np.linalg.norm(vector, axis=-1, keepdims=True)
+
+
+def start_tangent(coords: np.ndarray) -> np.ndarray:
+    """Unit driving direction at the first vertex."""
+    return unit_tangent(coords[1] - coords[0])
+
+
+def end_tangent(coords: np.ndarray) -> np.ndarray:
+    """Unit driving direction at the last vertex."""
+    return unit_tangent(coords[-1] - coords[-2])
+
+
+def start_tangent_rows(lines: list[np.ndarray]) -> np.ndarray:
+    """Unit driving directions at the first vertex of many polylines, (m, 2)."""
+    return unit_tangent(np.array([line[1] - line[0] for line in lines]))
+
+
+def end_tangent_rows(lines: list[np.ndarray]) -> np.ndarray:
+    """Unit driving directions at the last vertex of many polylines, (m, 2)."""
+    return unit_tangent(np.array([line[-1] - line[-2] for line in lines]))
+
+
+def _left(t: np.ndarray) -> np.ndarray:
+    """Left normals of unit tangents (rotate by +90 degrees)."""
+    return np.stack([-t[..., 1], t[..., 0]], axis=-1)
+
+
+def miter_normals(coords: np.ndarray) -> np.ndarray:
+    """Per-vertex left offset vectors for a unit distance, (n, 2).
+
+    Interior vertices use the miter join (exact for straight pieces: each offset segment stays
+    parallel to its original), so every lane boundary of a road shares the reference line's
+    vertices (paper Algorithm 1, GenerateLaneBoundaries).
+    """
+    seg_n = _left(unit_tangent(np.diff(coords, axis=0)))
+    vert_n = unit_tangent(np.vstack([seg_n[:1], seg_n[:-1] + seg_n[1:], seg_n[-1:]]))
+    cos_half = np.einsum("ij,ij->i", vert_n, np.vstack([seg_n[:1], seg_n]))
+    return vert_n / np.clip(cos_half, 1.0 / MAX_MITER, None)[:, None]
+
+
+def offset(coords: np.ndarray, distances, miter: np.ndarray | None = None) -> np.ndarray:
+    """Parallel copies of a polyline at signed ``distances`` (left positive), shape (k, n, 2)."""
+    miter = miter_normals(coords) if miter is None else miter
+    d = np.atleast_1d(np.asarray(distances, dtype=float))
+    return coords[None] + d[:, None, None] * miter[None]
+
+
+def signed_angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angles (radians, in (-pi, pi]) turning direction ``a`` into each row of ``b``; positive
+    means a left turn."""
+    return np.arctan2(_cross(a, b), b @ a)
+
+
+def _bernstein(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cubic Bernstein basis and its first and second derivatives at ``n`` parameters, (n, 4)."""
+    t = np.linspace(0.0, 1.0, n)
+    u = 1.0 - t
+    basis = np.column_stack([u**3, 3 * u**2 * t, 3 * u * t**2, t**3])
+    d1 = np.column_stack([-3 * u**2, 3 * u**2 - 6 * u * t, 6 * u * t - 3 * t**2, 3 * t**2])
+    d2 = np.column_stack([6 * u, 6 * t - 12 * u, 6 * u - 12 * t, 6 * t])
+    return basis, d1, d2
+
+
+def bezier_controls(p0: np.ndarray, t0: np.ndarray, p3: np.ndarray, t3: np.ndarray) -> np.ndarray:
+    """Cubic Bezier control points, (m, 4, 2), from ``p0`` leaving along unit ``t0`` to ``p3``
+    arriving along unit ``t3`` (all (m, 2)).
+
+    Handle length is the circular-arc approximation ``4/3 tan(theta/4) r`` for the turn angle
+    ``theta`` and the chord's arc radius ``r``: chord/3 when straight, 2/3 chord for a U-turn.
+    """
+    chord = np.linalg.norm(p3 - p0, axis=1)
+    theta = np.abs(np.arctan2(_cross(t0, t3), np.einsum("ij,ij->i", t0, t3)))
+    bent = theta > 1e-6
+    safe = np.where(bent, theta, 1.0)
+    k = np.where(bent, 4.0 / 3.0 * np.tan(safe / 4.0) * chord / (2.0 * np.sin(safe / 2.0)),
+                 chord / 3.0)
+    k = np.maximum(k, 1e-3)[:, None]
+    return np.stack([p0, p0 + k * t0, p3 - k * t3, p3], axis=1)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """z component of the cross product of 2-d row vectors."""
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def bezier_sample(ctrl: np.ndarray, n: int = BEZIER_SAMPLES):
+    """Points (m, n, 2), unit tangents (m, n, 2) and curvature (m, n) of cubic Beziers.
+
+    The first and last points are the first and last control points exactly (alignment 0).
+    """
+    basis, d1, d2 = _bernstein(n)
+    pts = np.einsum("nk,mkd->mnd", basis, ctrl)
+    vel = np.einsum("nk,mkd->mnd", d1, ctrl)
+    acc = np.einsum("nk,mkd->mnd", d2, ctrl)
+    speed = np.maximum(np.linalg.norm(vel, axis=2), 1e-9)
+    curvature = np.abs(_cross(vel, acc)) / speed**3
+    pts[:, 0], pts[:, -1] = ctrl[:, 0], ctrl[:, 3]
+    return pts, vel / speed[..., None], curvature
+
+
+def offset_along(pts: np.ndarray, tangents: np.ndarray, distances: np.ndarray) -> np.ndarray:
+    """Points moved left by ``distances`` (broadcast against the points' leading axes) along
+    the normals of the given unit tangents."""
+    return pts + _left(tangents) * distances[..., None]

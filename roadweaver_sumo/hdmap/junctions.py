@@ -1,0 +1,151 @@
+"""Junctions: control type, trim radius and connector lane geometry (paper Algorithm 1:
+RefineRoadGraph's junction-aware processing and ConstructJunctionConnections).
+
+A connector is a cubic Bezier whose ends are exactly the incoming lane's end and the outgoing
+lane's start, tangent to both, so the HD map's endpoint alignment error is zero by construction.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+
+import numpy as np
+
+from .geometry import (
+    arc_lengths,
+    bezier_controls,
+    bezier_sample,
+    end_tangent_rows,
+    offset_along,
+    start_tangent_rows,
+    unit_tangent,
+)
+from .lanes import LANE_CONFIGS
+from .model import HDMap, Junction, Lane, Road
+
+MIN_RADIUS = 2.0  # m: room for a connector even where a road just continues (degree-2 nodes)
+MARGIN = 1.0  # m: clearance added beyond the point where road edges meet
+MIN_ANGLE = np.radians(30.0)  # junction angles below this are treated as 30 degrees
+NEAR_STRAIGHT = np.radians(150.0)  # neighbouring roads this far apart do not overlap
+HEADING_PROBE = 5.0  # m along a road used to measure its direction at a junction
+LATERAL_ACCEL = 3.0  # m/s^2: connector speed limit sqrt(a * r_min) on tight turns
+
+
+def junction_type(classes: list[str]) -> str:
+    """Control type from the classes of the roads meeting at a node.
+
+    Traffic lights where two arterials meet (degree >= 3) or an arterial meets a collector at a
+    four-way (or larger) junction; dead ends get their own type; all else is priority.
+    """
+    degree = len(classes)
+    arterials, collectors = classes.count("arterial"), classes.count("collector")
+    if degree == 1:
+        return "dead_end"
+    if (arterials >= 2 and degree >= 3) or (arterials >= 1 and collectors >= 1 and degree >= 4):
+        return "traffic_light"
+    return "priority"
+
+
+def junction_radius(directions: np.ndarray, half_widths: np.ndarray) -> float:
+    """How far lane ends stay back from the junction centre, from the crossing roads' widths.
+
+    For two neighbouring roads at angle ``a`` with half widths ``w_i``, ``w_j``, their facing
+    edges meet ``(w_j + w_i cos a) / sin a`` along road ``i``; the radius clears the largest of
+    these (angles clipped at 30 degrees) plus a margin. Dead ends keep room for a turnaround.
+    """
+    if len(directions) == 1:
+        return max(MIN_RADIUS, float(half_widths[0]))
+    bearing = np.arctan2(directions[:, 1], directions[:, 0])
+    order = np.argsort(bearing)
+    b, w = bearing[order], half_widths[order]
+    gap = np.mod(np.roll(b, -1) - b, 2 * np.pi)  # angle from each road to the next one
+    wi, wj = w, np.roll(w, -1)
+    near = gap < NEAR_STRAIGHT
+    if not near.any():
+        return MIN_RADIUS
+    a = np.maximum(gap[near], MIN_ANGLE)
+    wi, wj = wi[near], wj[near]
+    reach = np.maximum(wj + wi * np.cos(a), wi + wj * np.cos(a)) / np.sin(a)
+    return max(MIN_RADIUS, float(reach.max()) + MARGIN)
+
+
+def _leaving_direction(road: Road, node: int) -> np.ndarray:
+    """Unit direction in which ``road`` leaves ``node``, measured a few metres out."""
+    line = road.centreline if road.from_node == node else road.centreline[::-1]
+    s = arc_lengths(line)
+    probe = min(HEADING_PROBE, s[-1] / 2.0)
+    point = np.array([np.interp(probe, s, line[:, 0]), np.interp(probe, s, line[:, 1])])
+    return unit_tangent(point - line[0])
+
+
+def make_junctions(
+    nodes: dict[int, tuple[float, float]], roads: dict[int, Road]
+) -> dict[int, Junction]:
+    """One junction per node with its incident roads, control type and trim radius."""
+    incident: dict[int, list[int]] = defaultdict(list)
+    for road in roads.values():
+        incident[road.from_node].append(road.id)
+        incident[road.to_node].append(road.id)
+    junctions = {}
+    for node in sorted(incident):
+        rids = sorted(incident[node])
+        dirs = np.array([_leaving_direction(roads[r], node) for r in rids])
+        half = np.array([LANE_CONFIGS[roads[r].road_class].half_width for r in rids])
+        junctions[node] = Junction(
+            id=node,
+            xy=(float(nodes[node][0]), float(nodes[node][1])),
+            type=junction_type([roads[r].road_class for r in rids]),
+            radius=junction_radius(dirs, half),
+            roads=rids,
+        )
+    return junctions
+
+
+def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]]) -> list[Lane]:
+    """Create connector lanes for ``(node, incoming lane, outgoing lane, movement)`` entries,
+    all Beziers computed in one vectorised batch.
+
+    A connector runs from the incoming lane's end to the outgoing lane's start, tangent to
+    both; its width blends linearly between theirs so its boundaries meet theirs too; its
+    speed is capped by its tightest curvature. Lane-graph links are set on the connector only
+    (the road lanes learn about it in ``topology.link_connector``).
+    """
+    if not plan:
+        return []
+    ins = [hd.lanes[p[1]] for p in plan]
+    outs = [hd.lanes[p[2]] for p in plan]
+    ctrl = bezier_controls(
+        np.array([a.centre[-1] for a in ins]),
+        end_tangent_rows([a.centre for a in ins]),
+        np.array([b.centre[0] for b in outs]),
+        start_tangent_rows([b.centre for b in outs]),
+    )
+    pts, tangents, curvature = bezier_sample(ctrl)
+    w0 = np.array([a.end_width for a in ins])
+    w1 = np.array([b.width for b in outs])
+    half = (w0[:, None] + (w1 - w0)[:, None] * np.linspace(0.0, 1.0, pts.shape[1])) / 2.0
+    left, right = offset_along(pts, tangents, half), offset_along(pts, tangents, -half)
+    turn_speed = np.sqrt(LATERAL_ACCEL / np.maximum(curvature.max(axis=1), 1e-9))
+    lanes = []
+    for i, ((node, in_id, out_id, movement), a, b) in enumerate(zip(plan, ins, outs, strict=True)):
+        junction = hd.junctions[node]
+        lane = Lane(
+            id=f"j{node}_{len(junction.connectors)}",
+            kind="connector",
+            road_class=a.road_class,
+            width=a.end_width,
+            end_width=b.width,
+            speed=round(min(a.speed, b.speed, float(turn_speed[i])), 2),
+            centre=pts[i],
+            left=left[i],
+            right=right[i],
+            junction=node,
+            movement=movement,
+            bezier=ctrl[i],
+            predecessors=[in_id],
+            successors=[out_id],
+        )
+        hd.lanes[lane.id] = lane
+        junction.connectors.append(lane.id)
+        lanes.append(lane)
+    return lanes

@@ -1,0 +1,113 @@
+"""Lane configurations by road class and directional road lanes (paper Algorithm 1: RefineRoadGraph,
+AssignLaneConfig, GenerateLaneBoundaries, ConstructDirectionalLanes).
+
+Right-hand traffic: lanes driving along the reference line lie right of it, the others left of
+it; every road is two-way with the same lane count in both directions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import networkx as nx
+import numpy as np
+
+from .geometry import arc_lengths, cut, dedupe, miter_normals, offset
+from .model import Lane, LaneSection, Road, road_lane_id
+
+
+@dataclass(frozen=True)
+class LaneConfig:
+    """Lanes per driving direction, lane width (m), speed limit (m/s) and SUMO edge priority."""
+
+    lanes: int
+    width: float
+    speed: float
+    priority: int
+
+    @property
+    def half_width(self) -> float:
+        """Distance from the reference line to the road's outer edge, metres."""
+        return self.lanes * self.width
+
+
+LANE_CONFIGS: dict[str, LaneConfig] = {
+    "arterial": LaneConfig(lanes=2, width=3.5, speed=13.89, priority=3),
+    "collector": LaneConfig(lanes=1, width=3.25, speed=11.11, priority=2),
+    "local": LaneConfig(lanes=1, width=3.0, speed=8.33, priority=1),
+}
+
+# Junction trims never take more than this share of a road from each end, so that short roads
+# between wide junctions keep a lane section of at least 20 % of their length.
+MAX_TRIM_SHARE = 0.4
+
+
+def make_roads(G: nx.Graph) -> dict[int, Road]:
+    """One road per RoadGraph edge with its class's lane configuration (AssignLaneConfig).
+
+    Roads are numbered in sorted node-pair order so ids do not depend on insertion order;
+    centrelines lose zero-length segments (RefineRoadGraph: geometric regularisation).
+    """
+    roads: dict[int, Road] = {}
+    for rid, (u, v) in enumerate(sorted(tuple(sorted(e)) for e in G.edges)):
+        data = G.edges[u, v]
+        start = data["start"]
+        cfg = LANE_CONFIGS[data["road_class"]]
+        roads[rid] = Road(
+            id=rid,
+            from_node=start,
+            to_node=v if start == u else u,
+            centreline=dedupe(data["coords"]),
+            road_class=data["road_class"],
+            priority=cfg.priority,
+            speed=cfg.speed,
+            lane_width=cfg.width,
+            sections=[],
+        )
+    return roads
+
+
+def build_road_lanes(road: Road, trim_start: float, trim_end: float) -> list[Lane]:
+    """Cut the reference line back by the junction trims, offset it into lane boundaries and
+    build the directional lanes of both driving directions (fills ``road.sections``)."""
+    length = float(arc_lengths(road.centreline)[-1])
+    s0 = min(trim_start, MAX_TRIM_SHARE * length)
+    s1 = length - min(trim_end, MAX_TRIM_SHARE * length)
+    reference = cut(road.centreline, s0, s1)
+    cfg = LANE_CONFIGS[road.road_class]
+    n, w = cfg.lanes, cfg.width
+    # distances right of the driving direction: boundary j at (n - j) lane widths (j = 0 the
+    # outermost, j = n the reference line itself), then lane k's centre at (n - k - 0.5) widths
+    right = w * np.concatenate([np.arange(n, -1, -1), np.arange(n, 0, -1) - 0.5])
+    miter = miter_normals(reference)
+    lines = {"f": offset(reference, -right, miter), "b": offset(reference, right, miter)[:, ::-1]}
+    lanes = {d: _directional_lanes(road, d, lines[d][: n + 1], lines[d][n + 1 :]) for d in lines}
+    road.sections = [LaneSection(s0, s1, [x.id for x in lanes["f"]], [x.id for x in lanes["b"]])]
+    return lanes["f"] + lanes["b"]
+
+
+def _directional_lanes(road: Road, direction: str, bounds: np.ndarray, centres: np.ndarray):
+    """The lanes of one driving direction, index 0 the outermost, from their boundaries and
+    centres (all in driving direction), with neighbour links between them."""
+    cfg = LANE_CONFIGS[road.road_class]
+    n, w = cfg.lanes, cfg.width
+    ids = [road_lane_id(road.id, direction, k) for k in range(n)]
+    return [
+        Lane(
+            id=ids[k],
+            kind="road",
+            road_class=road.road_class,
+            width=w,
+            end_width=w,
+            speed=cfg.speed,
+            centre=centres[k],
+            left=bounds[k + 1],
+            right=bounds[k],
+            road=road.id,
+            direction=direction,
+            index=k,
+            left_neighbour=ids[k + 1] if k + 1 < n else None,
+            right_neighbour=ids[k - 1] if k > 0 else None,
+        )
+        for k in range(n)
+    ]

@@ -1,0 +1,126 @@
+"""Legal movements through a junction and which lanes serve them (paper Algorithm 1,
+ConstructJunctionConnections: the lane-to-lane plan before any geometry is built).
+
+Rules, right-hand traffic, lane index 0 = rightmost:
+
+* every pair (incoming direction, outgoing direction of another road) is a movement; U-turns
+  only at dead ends, where the road's own reverse is the only way on;
+* the movement closest to straight ahead is *straight* if it turns less than 50 degrees, or if
+  every movement turns the same way (the road bends); the others are left or right turns;
+* straight spreads all incoming lanes over all outgoing lanes; right turns leave from the
+  rightmost lane into the rightmost lane, left turns from the leftmost into the leftmost (with
+  no straight movement, the incoming lanes are split between the right and the left turns);
+* gaps are closed: an incoming lane without a movement or an outgoing lane nobody enters
+  copies the movement of its nearest served neighbour lane.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import end_tangent, signed_angles, start_tangent
+from .model import DIRECTIONS, HDMap
+
+STRAIGHT_MAX = np.radians(50.0)
+
+Plan = list[tuple[str, str, str]]  # (incoming lane id, outgoing lane id, movement)
+
+
+@dataclass
+class Approach:
+    """One driving direction touching a junction: its road, lanes (rightmost first) and
+    its unit driving direction at the junction."""
+
+    road: int
+    lanes: list[str]
+    tangent: np.ndarray
+
+
+def approaches(hd: HDMap, node: int) -> tuple[list[Approach], list[Approach]]:
+    """Driving directions arriving at and leaving ``node``, in road and direction order."""
+    arrivals, departures = [], []
+    for rid in hd.junctions[node].roads:
+        road = hd.roads[rid]
+        for direction in DIRECTIONS:
+            lanes = road.lanes(direction)
+            centre = hd.lanes[lanes[0]].centre
+            if road.ends_at(direction) == node:
+                arrivals.append(Approach(rid, lanes, end_tangent(centre)))
+            if road.starts_at(direction) == node:
+                departures.append(Approach(rid, lanes, start_tangent(centre)))
+    return arrivals, departures
+
+
+def classify(arrival: Approach, departures: list[Approach]) -> list[tuple[Approach, str]]:
+    """Movement type of every legal departure for one arrival."""
+    others = [d for d in departures if d.road != arrival.road]
+    if not others:  # dead end: the turnaround is the only way on
+        return [(d, "uturn") for d in departures]
+    turns = signed_angles(arrival.tangent, np.array([d.tangent for d in others]))
+    k = int(np.argmin(np.abs(turns)))
+    one_side = bool(np.all(turns > 0) or np.all(turns < 0))
+    has_straight = abs(turns[k]) < STRAIGHT_MAX or one_side
+    labels = ["left" if t > 0 else "right" for t in turns]
+    if has_straight:
+        labels[k] = "straight"
+    return list(zip(others, labels, strict=True))
+
+
+def _spread(ins: list[str], outs: list[str]) -> list[tuple[str, str]]:
+    """Map lanes onto lanes in order so that every lane on both sides is used at least once."""
+    def scale(i: int, n_from: int, n_to: int) -> int:
+        return int(i * (n_to - 1) / max(n_from - 1, 1) + 0.5)
+
+    pairs = {(ins[i], outs[scale(i, len(ins), len(outs))]) for i in range(len(ins))}
+    pairs |= {(ins[scale(j, len(outs), len(ins))], outs[j]) for j in range(len(outs))}
+    return sorted(pairs)
+
+
+def lane_plan(arrival: Approach, moves: list[tuple[Approach, str]]) -> Plan:
+    """Lane-to-lane connections of one arrival's movements (the lane rules above)."""
+    n = len(arrival.lanes)
+    one_turn_lane = n == 1 or any(m == "straight" for _, m in moves)
+    n_right = 1 if one_turn_lane else n // 2
+    n_left = 1 if one_turn_lane else n - n // 2
+    plan: Plan = []
+    for dep, movement in moves:
+        if movement in ("straight", "uturn"):
+            pairs = _spread(arrival.lanes, dep.lanes)
+        elif movement == "right":
+            pairs = _spread(arrival.lanes[:n_right], dep.lanes[:1])
+        else:
+            pairs = _spread(arrival.lanes[n - n_left :], dep.lanes[-1:])
+        plan.extend((a, b, movement) for a, b in pairs)
+    return plan
+
+
+def _close_gaps(plan: Plan, groups: list[list[str]], side: int) -> Plan:
+    """For every lane of ``groups`` that no plan entry uses on ``side`` (0 = incoming,
+    1 = outgoing), copy the entry of its nearest used neighbour lane in the same group."""
+    first: dict[str, tuple[str, str, str]] = {}
+    for entry in plan:
+        first.setdefault(entry[side], entry)
+    added: Plan = []
+    for lanes in groups:
+        used = [i for i, lane in enumerate(lanes) if lane in first]
+        if not used:
+            continue
+        for i, lane in enumerate(lanes):
+            if lane in first:
+                continue
+            src = first[lanes[min(used, key=lambda j: (abs(j - i), j))]]
+            added.append((lane, src[1], src[2]) if side == 0 else (src[0], lane, src[2]))
+    return plan + added
+
+
+def junction_plan(hd: HDMap, node: int) -> Plan:
+    """The full, gap-free lane-to-lane plan of a junction, sorted for deterministic ids."""
+    arrivals, departures = approaches(hd, node)
+    plan: Plan = []
+    for arrival in arrivals:
+        plan.extend(lane_plan(arrival, classify(arrival, departures)))
+    plan = _close_gaps(plan, [a.lanes for a in arrivals], side=0)
+    plan = _close_gaps(plan, [d.lanes for d in departures], side=1)
+    return sorted(set(plan))
