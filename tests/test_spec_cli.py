@@ -29,7 +29,8 @@ def test_spec_round_trips_through_json(tmp_path):
     [
         (["--density", "0", "--vehicles", "5"], "density must be > 0"),
         (["--density", "-3", "--vehicles", "5"], "density must be > 0"),
-        (["--density", "30", "--vehicles", "5", "--size", "0"], "width 0 m is outside"),
+        (["--density", "30", "--vehicles", "5", "--size", "0"], "map width must be > 0"),
+        (["--density", "30", "--vehicles", "5", "--size", "50"], "width 50 m is outside"),
         (["--density", "30", "--vehicles", "5", "--style", "wavy"], "unknown style 'wavy'"),
         (["--density", "nan", "--vehicles", "5"], "density must be > 0"),
         (["--density", "abc", "--vehicles", "5"], "invalid float value"),
