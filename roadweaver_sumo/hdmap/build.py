@@ -11,11 +11,14 @@ from .movements import junction_plan
 from .topology import add_successor_links, repair_topology
 
 
-def build_hdmap(G: nx.Graph, geo_origin: tuple[float, float] | None = None) -> HDMap:
+def build_hdmap(
+    G: nx.Graph, geo_origin: tuple[float, float] | None = None, *, traffic_lights: bool = True
+) -> HDMap:
     """Build the lane-level HD map of a RoadGraph (paper Algorithm 1).
 
     ``geo_origin`` is the (lat, lon) of the local origin, written by exporters as the map's
-    geo-reference; by default ``G.graph["geo_origin"]`` if present.
+    geo-reference; by default ``G.graph["geo_origin"]`` if present. ``traffic_lights=False``
+    makes every junction but dead ends a priority junction (suburban maps).
     RepairLaneGeometry needs no pass of its own: connectors end exactly on the lanes they join
     and junction trims leave every road a lane section (see ``lanes.MAX_TRIM_SHARE``).
     """
@@ -25,7 +28,8 @@ def build_hdmap(G: nx.Graph, geo_origin: tuple[float, float] | None = None) -> H
         geo_origin=geo_origin if geo_origin is not None else G.graph.get("geo_origin"),
     )
     hd.roads = make_roads(G)  # RefineRoadGraph, AssignLaneConfig
-    hd.junctions = make_junctions({n: G.nodes[n]["xy"] for n in G.nodes}, hd.roads)
+    nodes = {n: G.nodes[n]["xy"] for n in G.nodes}
+    hd.junctions = make_junctions(nodes, hd.roads, traffic_lights)
     for road in hd.roads.values():  # GenerateLaneBoundaries, ConstructDirectionalLanes
         trims = (hd.junctions[road.from_node].radius, hd.junctions[road.to_node].radius)
         hd.lanes.update((lane.id, lane) for lane in build_road_lanes(road, *trims))

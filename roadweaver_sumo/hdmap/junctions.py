@@ -31,16 +31,19 @@ HEADING_PROBE = 5.0  # m along a road used to measure its direction at a junctio
 LATERAL_ACCEL = 3.0  # m/s^2: connector speed limit sqrt(a * r_min) on tight turns
 
 
-def junction_type(classes: list[str]) -> str:
+def junction_type(classes: list[str], traffic_lights: bool = True) -> str:
     """Control type from the classes of the roads meeting at a node.
 
     Traffic lights where two arterials meet (degree >= 3) or an arterial meets a collector at a
-    four-way (or larger) junction; dead ends get their own type; all else is priority.
+    four-way (or larger) junction, unless ``traffic_lights`` is off (suburban maps); dead ends
+    get their own type; all else is priority.
     """
     degree = len(classes)
     arterials, collectors = classes.count("arterial"), classes.count("collector")
     if degree == 1:
         return "dead_end"
+    if not traffic_lights:
+        return "priority"
     if (arterials >= 2 and degree >= 3) or (arterials >= 1 and collectors >= 1 and degree >= 4):
         return "traffic_light"
     return "priority"
@@ -79,7 +82,7 @@ def _leaving_direction(road: Road, node: int) -> np.ndarray:
 
 
 def make_junctions(
-    nodes: dict[int, tuple[float, float]], roads: dict[int, Road]
+    nodes: dict[int, tuple[float, float]], roads: dict[int, Road], traffic_lights: bool = True
 ) -> dict[int, Junction]:
     """One junction per node with its incident roads, control type and trim radius."""
     incident: dict[int, list[int]] = defaultdict(list)
@@ -94,7 +97,7 @@ def make_junctions(
         junctions[node] = Junction(
             id=node,
             xy=(float(nodes[node][0]), float(nodes[node][1])),
-            type=junction_type([roads[r].road_class for r in rids]),
+            type=junction_type([roads[r].road_class for r in rids], traffic_lights),
             radius=junction_radius(dirs, half),
             roads=rids,
         )

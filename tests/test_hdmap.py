@@ -1,0 +1,247 @@
+"""Stage 3: lane-level HD map construction on small hand-made road graphs."""
+
+from __future__ import annotations
+
+import networkx as nx
+import numpy as np
+import pytest
+from shapely.geometry import LineString, Point, Polygon
+
+from roadweaver_sumo.hdmap import LANE_CONFIGS, build_hdmap, hdmap_metrics, lane_reachability
+from roadweaver_sumo.hdmap.junctions import junction_type
+from roadweaver_sumo.roadgraph import add_road, new_road_graph
+
+
+def _graph(nodes: dict, roads: list, size: float = 400.0) -> nx.Graph:
+    """RoadGraph from node positions and (u, v, class, *interior points) tuples."""
+    G = new_road_graph(size, size)
+    for n, xy in nodes.items():
+        G.add_node(n, xy=(float(xy[0]), float(xy[1])))
+    for u, v, road_class, *interior in roads:
+        add_road(G, u, v, [nodes[u], *interior, nodes[v]], road_class)
+    return G
+
+
+def grid_with_arterial_cross() -> nx.Graph:
+    """3 x 3 grid, 100 m blocks: the middle row and column are arterials, the other rows
+    locals and the other columns collectors; the centre is a four-arterial crossing."""
+    nodes = {3 * i + j: (100.0 * (j + 1), 100.0 * (i + 1)) for i in range(3) for j in range(3)}
+    roads = []
+    for i in range(3):
+        for j in range(3):
+            a = 3 * i + j
+            if j < 2:
+                roads.append((a, a + 1, "arterial" if i == 1 else "local"))
+            if i < 2:
+                roads.append((a, a + 3, "arterial" if j == 1 else "collector"))
+    return _graph(nodes, roads)
+
+
+def t_junction() -> nx.Graph:
+    """An arterial running west-east with a local stem to the south; all three arms end in
+    dead ends."""
+    nodes = {0: (200, 200), 1: (50, 200), 2: (350, 200), 3: (200, 60)}
+    return _graph(nodes, [(1, 0, "arterial"), (0, 2, "arterial"), (0, 3, "local")])
+
+
+def curve_with_degree_two_node() -> nx.Graph:
+    """A straight arterial meeting, at a degree-2 node, a collector bending through a quarter
+    circle (radius 100 m); both far ends are dead ends."""
+    angles = np.linspace(-np.pi / 2, 0.0, 17)[1:-1]
+    arc = [(100 + 100 * np.cos(a), 100 + 100 * np.sin(a)) for a in angles]
+    nodes = {0: (0, 0), 1: (100, 0), 2: (200, 100)}
+    return _graph(nodes, [(0, 1, "arterial"), (1, 2, "collector", *arc)])
+
+
+def short_road_between_crossings() -> nx.Graph:
+    """Two arterial crossings only 12 m apart, joined by a local road."""
+    nodes = {0: (100, 100), 1: (112, 100), 2: (100, 20), 3: (100, 180), 4: (112, 20),
+             5: (112, 180), 6: (20, 100), 7: (192, 100)}
+    roads = [(2, 0, "arterial"), (0, 3, "arterial"), (4, 1, "arterial"), (1, 5, "arterial"),
+             (0, 1, "local"), (6, 0, "local"), (1, 7, "local")]
+    return _graph(nodes, roads)
+
+
+def ring() -> nx.Graph:
+    """Four arterials in a square, every node of degree 2: no junction allows a way back."""
+    nodes = {0: (100, 100), 1: (200, 100), 2: (200, 200), 3: (100, 200)}
+    return _graph(nodes, [(i, (i + 1) % 4, "arterial") for i in range(4)])
+
+
+FIXTURES = [grid_with_arterial_cross, t_junction, curve_with_degree_two_node,
+            short_road_between_crossings, ring]
+
+
+@pytest.fixture(scope="module", params=FIXTURES, ids=lambda f: f.__name__)
+def hdmap(request):
+    return build_hdmap(request.param())
+
+
+def test_lane_graph_is_strongly_connected_fully_reachable_and_aligned(hdmap):
+    m = hdmap_metrics(hdmap)
+    assert set(m) >= {"lane_count", "lane_reachability", "strongly_connected",
+                      "alignment_mean_m", "alignment_p95_m", "alignment_max_m"}
+    assert m["strongly_connected"] is True
+    assert m["lane_reachability"] == 1.0
+    assert m["alignment_max_m"] <= 1e-9
+    assert m["lane_count"] == len(hdmap.road_lanes())
+
+
+def test_lanes_follow_their_road_class(hdmap):
+    for road in hdmap.roads.values():
+        cfg = LANE_CONFIGS[road.road_class]
+        for direction in ("f", "b"):
+            lanes = [hdmap.lanes[i] for i in road.lanes(direction)]
+            assert [lane.index for lane in lanes] == list(range(cfg.lanes))
+            assert all(lane.width == cfg.width and lane.speed == cfg.speed for lane in lanes)
+
+
+def test_lanes_lie_right_of_the_reference_line_at_their_offset(hdmap):
+    """Right-hand traffic: lane k of n sits (n - k - 0.5) lane widths right of the reference
+    line in its driving direction; boundaries are one lane width apart."""
+    for lane in hdmap.road_lanes():
+        road = hdmap.roads[lane.road]
+        n = LANE_CONFIGS[road.road_class].lanes
+        line = road.centreline if lane.direction == "f" else road.centreline[::-1]
+        mids = (lane.centre[1:] + lane.centre[:-1]) / 2  # offset segments are exactly parallel
+        expected = (n - lane.index - 0.5) * lane.width
+        dist = [LineString(line).distance(Point(p)) for p in mids]
+        assert np.allclose(dist, expected, atol=1e-6)
+        ahead, across = line[1] - line[0], lane.centre[0] - line[0]
+        assert ahead[0] * across[1] - ahead[1] * across[0] < 0  # right of the driving direction
+        width = np.linalg.norm(lane.left - lane.right, axis=1)
+        assert np.allclose(width[[0, -1]], lane.width)
+
+
+def test_every_lane_has_a_way_in_and_a_way_out(hdmap):
+    for lane in hdmap.road_lanes():
+        assert lane.successors, lane.id
+        assert lane.predecessors, lane.id
+
+
+def test_connectors_start_and_end_exactly_on_the_lanes_they_join(hdmap):
+    for c in hdmap.connectors():
+        (pred,), (succ,) = c.predecessors, c.successors
+        a, b = hdmap.lanes[pred], hdmap.lanes[succ]
+        assert np.array_equal(c.centre[0], a.centre[-1])
+        assert np.array_equal(c.centre[-1], b.centre[0])
+        assert np.allclose([c.left[0], c.right[0]], [a.left[-1], a.right[-1]], atol=1e-9)
+        assert np.allclose([c.left[-1], c.right[-1]], [b.left[0], b.right[0]], atol=1e-9)
+        assert c.id in a.successors and c.id in b.predecessors
+
+
+def test_turns_leave_from_the_outer_lanes(hdmap):
+    """With two or more incoming lanes, right turns leave only from the rightmost lane and left
+    turns only from the leftmost one; straight movements keep lane order."""
+    for c in hdmap.connectors():
+        a, b = hdmap.lanes[c.predecessors[0]], hdmap.lanes[c.successors[0]]
+        n_in = len(hdmap.roads[a.road].lanes(a.direction))
+        n_out = len(hdmap.roads[b.road].lanes(b.direction))
+        if c.movement == "right" and n_in >= 2:
+            assert a.index == 0, c.id
+        if c.movement == "left" and n_in >= 2:
+            assert a.index == n_in - 1, c.id
+        if c.movement == "straight" and n_in == n_out:
+            assert a.index == b.index, c.id
+
+
+def test_uturns_only_at_dead_ends_or_as_repairs(hdmap):
+    """Every dead-end lane turns around; elsewhere a road never connects to itself unless the
+    repair pass needed it (only a ring without any real junction does)."""
+    needs_repair = all(len(j.roads) == 2 for j in hdmap.junctions.values())
+    for c in hdmap.connectors():
+        a, b = hdmap.lanes[c.predecessors[0]], hdmap.lanes[c.successors[0]]
+        same_road = a.road == b.road
+        assert same_road == (c.movement == "uturn")
+        if same_road and not needs_repair:
+            assert hdmap.junctions[c.junction].type == "dead_end"
+    for j in hdmap.junctions.values():
+        if j.type == "dead_end":
+            arriving = {hdmap.lanes[c].predecessors[0] for c in j.connectors}
+            road = hdmap.roads[j.roads[0]]
+            direction = "f" if road.to_node == j.id else "b"
+            assert arriving == set(road.lanes(direction))
+
+
+def test_lanes_of_different_roads_do_not_overlap(hdmap):
+    polys = {}
+    for lane in hdmap.road_lanes():
+        shape = Polygon(np.vstack([lane.left, lane.right[::-1]]))
+        polys[lane.road] = shape if lane.road not in polys else polys[lane.road].union(shape)
+    for j in hdmap.junctions.values():
+        for i, r in enumerate(j.roads):
+            for s in j.roads[i + 1 :]:
+                assert polys[r].intersection(polys[s]).area < 1e-6, (j.id, r, s)
+
+
+def test_degree_two_node_merges_two_lanes_into_one():
+    hd = build_hdmap(curve_with_degree_two_node())
+    (arterial,) = [r for r in hd.roads.values() if r.road_class == "arterial"]
+    (collector,) = [r for r in hd.roads.values() if r.road_class == "collector"]
+    pairs = {(hd.lanes[c].predecessors[0], hd.lanes[c].successors[0])
+             for c in hd.junctions[1].connectors}
+    assert pairs == {("r0_f_0", "r1_f_0"), ("r0_f_1", "r1_f_0"),
+                     ("r1_b_0", "r0_b_0"), ("r1_b_0", "r0_b_1")}
+    assert (arterial.id, collector.id) == (0, 1)
+
+
+def test_short_road_keeps_a_lane_section():
+    hd = build_hdmap(short_road_between_crossings())
+    (road,) = [r for r in hd.roads.values() if {r.from_node, r.to_node} == {0, 1}]
+    section = road.sections[0]
+    assert section.s_end - section.s_start >= 0.2 * 12.0 - 1e-9
+
+
+def test_junction_types():
+    assert junction_type(["local"]) == "dead_end"
+    assert junction_type(["arterial", "arterial"]) == "priority"
+    assert junction_type(["arterial", "arterial", "local"]) == "traffic_light"
+    assert junction_type(["arterial", "collector", "local"]) == "priority"
+    assert junction_type(["arterial", "collector", "local", "local"]) == "traffic_light"
+    assert junction_type(["arterial"] * 4, traffic_lights=False) == "priority"
+    hd = build_hdmap(grid_with_arterial_cross())
+    types = {j: hd.junctions[j].type for j in hd.junctions}
+    assert types[4] == "traffic_light"
+    assert all(types[j] == "priority" for j in types if j != 4)
+    hd = build_hdmap(t_junction(), traffic_lights=False)
+    assert [hd.junctions[j].type for j in sorted(hd.junctions)] == ["priority"] + ["dead_end"] * 3
+
+
+def test_ring_is_repaired_with_two_uturns():
+    hd = build_hdmap(ring())
+    uturns = [c for c in hd.connectors() if c.movement == "uturn"]
+    assert len(uturns) == 2
+    assert hdmap_metrics(hd)["strongly_connected"]
+
+
+def _brute_force_reachability(hd) -> float:
+    g = nx.DiGraph()
+    for lane in hd.lanes.values():
+        g.add_node(lane.id)
+        for t in lane.successors + [x for x in (lane.left_neighbour, lane.right_neighbour) if x]:
+            g.add_edge(lane.id, t)
+    road = [lane.id for lane in hd.road_lanes()]
+    hits = sum(len(nx.descendants(g, u) & set(road)) for u in road)
+    return hits / (len(road) * (len(road) - 1))
+
+
+def test_lane_reachability_counts_pairs_without_repair():
+    hd = build_hdmap(ring())
+    for c in [c for c in hd.connectors() if c.movement == "uturn"]:  # undo the repair
+        hd.lanes[c.predecessors[0]].successors.remove(c.id)
+        hd.lanes[c.successors[0]].predecessors.remove(c.id)
+        hd.junctions[c.junction].connectors.remove(c.id)
+        del hd.lanes[c.id]
+    value = lane_reachability(hd)
+    assert value == pytest.approx(_brute_force_reachability(hd))
+    assert value == pytest.approx(2 * 8 * 7 / (16 * 15))  # two one-way loops of 8 lanes
+    assert hdmap_metrics(hd)["strongly_connected"] is False
+
+
+def test_build_is_deterministic():
+    a, b = build_hdmap(grid_with_arterial_cross()), build_hdmap(grid_with_arterial_cross())
+    assert list(a.lanes) == list(b.lanes)
+    for lane_id, lane in a.lanes.items():
+        other = b.lanes[lane_id]
+        assert np.array_equal(lane.centre, other.centre)
+        assert (lane.successors, lane.predecessors) == (other.successors, other.predecessors)
