@@ -1,0 +1,130 @@
+"""HD map to SUMO plain XML (``map.nod.xml``, ``map.edg.xml``, ``map.con.xml``) for netconvert.
+
+One SUMO edge per road direction (``r7_f`` along the reference line, ``r7_b`` against it), whose
+shape is the road's centreline in driving direction: SUMO's default ``spreadType="right"`` puts
+the lanes right of it, as in the HD map, so SUMO lane ``r7_f_0`` is HD map lane ``r7_f_0``.
+
+Connections come from the HD map's lane graph only. netconvert keeps exactly the connections
+given for an edge that has any, but guesses all (U-turns included) for an edge that has none;
+an edge without outgoing lanes in the lane graph is therefore declared with an empty
+``<connection from="..."/>``, so that the ``.net.xml`` never holds a connection we did not make.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from lxml import etree
+
+from ..hdmap.model import DIRECTIONS, HDMap, edge_id
+
+XSI = "http://www.w3.org/2001/XMLSchema-instance"
+METRES_PER_DEGREE = 111_320.0  # at the equator; only used for the informative origBoundary
+
+
+def node_id(node: int) -> str:
+    """SUMO node id of a junction, e.g. ``"n12"``."""
+    return f"n{node}"
+
+
+def _num(x: float) -> str:
+    """Fixed two-decimal formatting, without ``-0.00``."""
+    return f"{round(float(x), 2) + 0.0:.2f}"
+
+
+def _shape(coords) -> str:
+    return " ".join(f"{_num(x)},{_num(y)}" for x, y in coords)
+
+
+def _root(tag: str, schema: str) -> etree._Element:
+    return etree.Element(tag, nsmap={"xsi": XSI},
+                         attrib={f"{{{XSI}}}noNamespaceSchemaLocation":
+                                 f"http://sumo.dlr.de/xsd/{schema}"})
+
+
+def _location(hd: HDMap) -> etree._Element:
+    """Geo-reference: a transverse Mercator projection centred on the map's origin (0, 0),
+    so SUMO's x/y are our local metres and sumo-gui / sumolib can report lat/lon."""
+    lat, lon = hd.geo_origin
+    dlat = hd.height / METRES_PER_DEGREE
+    dlon = hd.width / (METRES_PER_DEGREE * math.cos(math.radians(lat)))
+    proj = f"+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m"
+    return etree.Element("location", {
+        "netOffset": "0.00,0.00",
+        "convBoundary": f"0.00,0.00,{_num(hd.width)},{_num(hd.height)}",
+        "origBoundary": f"{lon:.6f},{lat:.6f},{lon + dlon:.6f},{lat + dlat:.6f}",
+        "projParameter": proj,
+    })
+
+
+def plain_nodes(hd: HDMap) -> etree._Element:
+    """``<nodes>``: one node per junction with its control type."""
+    root = _root("nodes", "nodes_file.xsd")
+    if hd.geo_origin is not None:
+        root.append(_location(hd))
+    for jid in sorted(hd.junctions):
+        j = hd.junctions[jid]
+        etree.SubElement(root, "node", {"id": node_id(jid), "x": _num(j.xy[0]),
+                                        "y": _num(j.xy[1]), "type": j.type})
+    return root
+
+
+def plain_edges(hd: HDMap) -> etree._Element:
+    """``<edges>``: one edge per road direction, shape in driving direction."""
+    root = _root("edges", "edges_file.xsd")
+    for rid in sorted(hd.roads):
+        road = hd.roads[rid]
+        for direction in DIRECTIONS:
+            line = road.centreline if direction == "f" else road.centreline[::-1]
+            etree.SubElement(root, "edge", {
+                "id": edge_id(rid, direction),
+                "from": node_id(road.starts_at(direction)),
+                "to": node_id(road.ends_at(direction)),
+                "priority": str(road.priority),
+                "numLanes": str(len(road.lanes(direction))),
+                "speed": _num(road.speed),
+                "width": _num(road.lane_width),
+                "spreadType": "right",
+                "shape": _shape(line),
+            })
+    return root
+
+
+def lane_connections(hd: HDMap) -> list[tuple[str, str, int, int]]:
+    """(from edge, to edge, from lane, to lane) of every road lane -> connector -> road lane path
+    in the HD map's lane graph, sorted."""
+    found = set()
+    for lane in hd.road_lanes():
+        for via in lane.successors:
+            for succ in hd.lanes[via].successors:
+                target = hd.lanes[succ]
+                found.add((lane.edge, target.edge, lane.index, target.index))
+    return sorted(found)
+
+
+def plain_connections(hd: HDMap) -> etree._Element:
+    """``<connections>``: exactly the lane graph's connections; edges without any are declared
+    empty so that netconvert does not invent connections for them."""
+    root = _root("connections", "connections_file.xsd")
+    connections = lane_connections(hd)
+    connected = {c[0] for c in connections}
+    every_edge = sorted(edge_id(r, d) for r in hd.roads for d in DIRECTIONS)
+    for edge in every_edge:
+        if edge not in connected:
+            etree.SubElement(root, "connection", {"from": edge})
+    for src, dst, src_lane, dst_lane in connections:
+        etree.SubElement(root, "connection", {"from": src, "to": dst, "fromLane": str(src_lane),
+                                              "toLane": str(dst_lane)})
+    return root
+
+
+def write_plain(hdmap: HDMap, plain_dir: Path) -> None:
+    """Write ``map.nod.xml``, ``map.edg.xml`` and ``map.con.xml`` into ``plain_dir`` (created if
+    missing). Output is deterministic: sorted ids, two-decimal coordinates."""
+    plain_dir = Path(plain_dir)
+    plain_dir.mkdir(parents=True, exist_ok=True)
+    for name, root in (("map.nod.xml", plain_nodes(hdmap)), ("map.edg.xml", plain_edges(hdmap)),
+                       ("map.con.xml", plain_connections(hdmap))):
+        etree.ElementTree(root).write(str(plain_dir / name), pretty_print=True,
+                                      xml_declaration=True, encoding="UTF-8")
