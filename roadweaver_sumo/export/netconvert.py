@@ -1,0 +1,83 @@
+"""Run netconvert on the plain XML from a packaged configuration template.
+
+The filled template is written next to the outputs as ``netconvert.netccfg`` and netconvert runs
+inside the scenario folder with relative paths, so ``netconvert -c netconvert.netccfg`` there
+reproduces the net, and two runs give byte-identical ``map.net.xml`` once SUMO's timestamp
+comment is stripped (see shared NOTES).
+"""
+
+from __future__ import annotations
+
+import tempfile
+from importlib import resources
+from pathlib import Path
+from string import Template
+
+from ..errors import RoadweaverError
+from ..sumo_tools import binary, run, strip_generated_comment
+
+TEMPLATE_PACKAGE = "roadweaver_sumo.netconvert_templates"
+CONFIG_NAME = "netconvert.netccfg"
+NET_NAME = "map.net.xml"
+PLAIN_FILES = {
+    "node_files": "plain/map.nod.xml",
+    "edge_files": "plain/map.edg.xml",
+    "connection_files": "plain/map.con.xml",
+}
+
+
+def available_templates() -> list[str]:
+    """Names of the packaged netconvert templates (``urban``, ``suburban``, ...)."""
+    files = resources.files(TEMPLATE_PACKAGE).iterdir()
+    return sorted(f.name.removesuffix(".netccfg") for f in files if f.name.endswith(".netccfg"))
+
+
+def fill_template(template: str) -> str:
+    """The text of template ``template`` with the plain-XML inputs and net output filled in."""
+    source = resources.files(TEMPLATE_PACKAGE).joinpath(f"{template}.netccfg")
+    if not source.is_file():
+        choices = ", ".join(available_templates())
+        raise RoadweaverError(f"unknown netconvert template {template!r}; choose one of: {choices}")
+    try:
+        return Template(source.read_text(encoding="utf-8")).substitute(
+            PLAIN_FILES, output_file=NET_NAME)
+    except (KeyError, ValueError) as err:
+        msg = f"netconvert template {template!r} has a bad placeholder: {err}"
+        raise RoadweaverError(msg) from None
+
+
+def _run(out_dir: Path) -> None:
+    """Run netconvert in ``out_dir``; on failure quote its first ``Error:`` line, which says
+    what is wrong (its last line is only "Quitting (on error).")."""
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(tmp) / "netconvert.log"
+        args = [binary("netconvert"), "-c", CONFIG_NAME, "--error-log", str(log)]
+        try:
+            run(args, cwd=out_dir, what="netconvert")
+        except RoadweaverError:
+            text = log.read_text(encoding="utf-8", errors="replace") if log.exists() else ""
+            errors = [ln[len("Error:") :].strip() for ln in text.splitlines()
+                      if ln.startswith("Error:")]
+            if not errors:
+                raise
+            raise RoadweaverError(f"netconvert failed: {errors[0]}") from None
+
+
+def run_netconvert(out_dir: Path, template: str = "urban") -> Path:
+    """Build ``out_dir/map.net.xml`` from ``out_dir/plain/`` with the named template.
+
+    Raises RoadweaverError (one line) when a plain file is missing, the template is unknown or
+    netconvert fails; ``--ignore-errors`` is never used, so a net is complete or not written.
+    """
+    out_dir = Path(out_dir)
+    missing = [p for p in PLAIN_FILES.values() if not (out_dir / p).is_file()]
+    if missing:
+        raise RoadweaverError(f"cannot run netconvert: {out_dir / missing[0]} does not exist")
+    (out_dir / CONFIG_NAME).write_text(fill_template(template), encoding="utf-8")
+    net = out_dir / NET_NAME
+    net.unlink(missing_ok=True)  # never return a net left over from an earlier run
+    _run(out_dir)
+    if not net.is_file():
+        raise RoadweaverError(f"netconvert wrote no {NET_NAME} in {out_dir}")
+    strip_generated_comment(net)
+    return net
