@@ -53,8 +53,9 @@ def lane_graph(hd: HDMap) -> tuple[list[str], csr_matrix]:
     return ids, csr_matrix((data, (src, dst)), shape=(len(ids), len(ids)))
 
 
-def _components(hd: HDMap):
-    """Lane ids, strong-component labels and the condensation's edges (label pairs)."""
+def _components(hd: HDMap) -> tuple[list[str], int, np.ndarray, np.ndarray]:
+    """Lane ids, number of strong components, each lane's component label and the
+    condensation's edges as (k, 2) label pairs."""
     ids, graph = lane_graph(hd)
     n_comp, labels = connected_components(graph, directed=True, connection="strong")
     coo = graph.tocoo()
@@ -160,8 +161,13 @@ def alignment_errors(hd: HDMap) -> np.ndarray:
 
 
 def hdmap_metrics(hd: HDMap) -> dict:
-    """Lane-level metrics of an HD map: lane counts, reachability, strong connectivity and
-    endpoint alignment error (mean / p95 / max, metres)."""
+    """Lane-level metrics of an HD map.
+
+    ``lane_count`` counts road lanes and ``connector_count`` junction connector lanes;
+    ``lane_reachability`` is over ordered pairs of road lanes; ``strongly_connected`` is for
+    the whole lane graph; ``alignment_*_m`` summarise the distance between every lane's end
+    and each successor's start (mean / p95 / max, metres).
+    """
     errors = alignment_errors(hd)
     errors = errors if len(errors) else np.zeros(1)
     components = _components(hd)
