@@ -99,24 +99,27 @@ def split_chord(face: Polygon, nodes: np.ndarray, field: TensorField, rng, min_e
     return None
 
 
-def _trace_in_face(face: Polygon, start, d, field: TensorField, max_steps: int = 400):
-    """Follow the field from ``start`` until the path crosses the face boundary."""
+def _trace_in_face(face: Polygon, start, d, field: TensorField):
+    """Follow the field from ``start`` until the path crosses the face boundary.
+
+    The path is traced in growing chunks and intersected with the boundary once per chunk (a
+    shapely call per Euler step would dominate the run time)."""
     boundary = face.exterior
     pts = [np.asarray(start, float)]
     p, d = pts[0], np.asarray(d, float)
-    for _ in range(max_steps):
-        a = choose_axis(field, p, d)
-        d = clamp_turn(d, a, math.radians(8.0))
-        q = p + STEP * d
-        seg = LineString([p, q])
-        if seg.intersects(boundary):
-            hit = seg.intersection(boundary)
-            hit_pts = [np.asarray(g.coords[0]) for g in shapely.get_parts(hit)]
-            end = min(hit_pts, key=lambda h: np.hypot(*(h - p)))
-            pts.append(end)
-            return np.array(pts)
-        pts.append(q)
-        p = q
+    for chunk in (8, 16, 32, 64, 128, 256):
+        first = len(pts) - 1
+        for _ in range(chunk):
+            d = clamp_turn(d, choose_axis(field, p, d), math.radians(8.0))
+            p = p + STEP * d
+            pts.append(p)
+        path = LineString(pts[first:])
+        hit = path.intersection(boundary)
+        if not hit.is_empty:
+            along = min(path.project(g) for g in shapely.get_parts(shapely.points(
+                shapely.get_coordinates(hit))))
+            head = shapely.ops.substring(path, 0, along)
+            return np.vstack([np.asarray(pts[:first]).reshape(-1, 2), np.asarray(head.coords)])
     return None
 
 
