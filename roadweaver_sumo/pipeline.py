@@ -12,10 +12,10 @@ import os
 import shutil
 import tempfile
 import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterator
 
 from .errors import RoadweaverError
 from .expand import expand_skeleton
@@ -97,7 +97,7 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
     with stage("expansion"):
         graph = expand_skeleton(spec, skeleton)
     with stage("hdmap"):
-        hdmap = build_hdmap(graph, spec.geo_origin)
+        hdmap = build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights)
     with stage("export"):
         write_plain(hdmap, folder / "plain")
         (folder / SPEC_FILE).write_text(spec.to_json(), encoding="utf-8")

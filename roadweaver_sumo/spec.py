@@ -83,6 +83,11 @@ class ScenarioSpec:
         """Sparse maps are suburban (priority junctions); denser ones urban (traffic lights)."""
         return "urban" if self.density >= 20 else "suburban"
 
+    @property
+    def traffic_lights(self) -> bool:
+        """Urban maps signalise arterial crossings; suburban ones keep priority junctions."""
+        return self.netconvert_template == "urban"
+
     def rng(self, stage: int) -> np.random.Generator:
         return np.random.default_rng([self.seed, stage])
 
@@ -92,7 +97,7 @@ class ScenarioSpec:
         return json.dumps(data, indent=2, sort_keys=True) + "\n"
 
     @classmethod
-    def from_json_file(cls, path: Path) -> "ScenarioSpec":
+    def from_json_file(cls, path: Path) -> ScenarioSpec:
         try:
             data = json.loads(Path(path).read_text(encoding="utf-8"))
         except (OSError, json.JSONDecodeError) as exc:

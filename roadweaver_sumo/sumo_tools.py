@@ -34,19 +34,25 @@ def tool(relative: str) -> str:
 
 
 def child_env() -> dict:
-    """Environment for SUMO child processes: SUMO_HOME set so XML validation stays on."""
+    """Environment for SUMO child processes: SUMO_HOME set so XML validation stays on, and
+    PROJ's data folder so geo-referenced nets load without warnings."""
     env = dict(os.environ)
     env["SUMO_HOME"] = str(SUMO_HOME)
+    proj = SUMO_HOME / "data" / "proj"
+    if proj.is_dir():  # the wheel ships proj.db; without it SUMO warns on geo-referenced nets
+        env.setdefault("PROJ_LIB", str(proj))
+        env.setdefault("PROJ_DATA", str(proj))
     return env
 
 
 def run(args: list[str], cwd: Path, what: str) -> subprocess.CompletedProcess:
     """Run a SUMO program in ``cwd``; on failure raise a one-line error quoting its last message."""
-    proc = subprocess.run(args, cwd=cwd, env=child_env(), capture_output=True, text=True)
+    proc = subprocess.run(args, cwd=cwd, env=child_env(), capture_output=True, text=True, check=False)
     if proc.returncode != 0:
         lines = [ln.strip() for ln in (proc.stderr + proc.stdout).splitlines() if ln.strip()]
-        last = lines[-1] if lines else f"exit code {proc.returncode}"
-        raise RoadweaverError(f"{what} failed: {last}")
+        errors = [ln for ln in lines if ln.startswith("Error:")]
+        reason = errors[0] if errors else (lines[-1] if lines else f"exit code {proc.returncode}")
+        raise RoadweaverError(f"{what} failed: {reason}")
     return proc
 
 

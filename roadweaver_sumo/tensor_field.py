@@ -89,7 +89,7 @@ def structure_tensor(
     np.add.at(acc_c, (i, j), np.cos(2 * phi))
     np.add.at(acc_s, (i, j), np.sin(2 * phi))
     np.add.at(acc_w, (i, j), 1.0)
-    opts = dict(sigma=sigma / res, truncate=radius / sigma, mode="constant")
+    opts = {"sigma": sigma / res, "truncate": radius / sigma, "mode": "constant"}
     sum_c, sum_s, sum_w = (gaussian_filter(a, **opts) for a in (acc_c, acc_s, acc_w))
     safe = np.where(sum_w > 1e-12, sum_w, 1.0)
     return TensorField(sum_c / safe, sum_s / safe, res), sum_w

@@ -52,7 +52,7 @@ def test_same_seed_gives_byte_identical_folder(scenario, tmp_path):
 def test_sumocfg_runs_with_sumo_from_any_directory(scenario, tmp_path):
     proc = subprocess.run([binary("sumo"), "-c", str(scenario / "scenario.sumocfg"),
                            "--no-step-log", "--duration-log.statistics"],
-                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120, check=False)
     assert proc.returncode == 0, proc.stderr
     vehicles = proc.stdout.split("Vehicles:")[1]
     assert "Inserted: 60" in vehicles and "Running: 0" in vehicles and "Waiting: 0" in vehicles
@@ -66,7 +66,7 @@ def test_netconvert_reproduces_the_net_from_the_written_template(scenario, tmp_p
         (copy / "plain" / name).write_bytes((scenario / "plain" / name).read_bytes())
     (copy / "netconvert.netccfg").write_bytes((scenario / "netconvert.netccfg").read_bytes())
     proc = subprocess.run([binary("netconvert"), "-c", "netconvert.netccfg"], cwd=copy,
-                          capture_output=True, text=True)
+                          capture_output=True, text=True, check=False)
     assert proc.returncode == 0, proc.stderr
     strip_generated_comment(copy / "map.net.xml")
     assert (copy / "map.net.xml").read_bytes() == (scenario / "map.net.xml").read_bytes()
@@ -89,5 +89,5 @@ def test_force_replaces_a_folder(tmp_path):
 
 def test_console_script_is_installed():
     proc = subprocess.run([str(Path(sys.executable).parent / "roadweaver-sumo"), "--version"],
-                          capture_output=True, text=True)
+                          capture_output=True, text=True, check=False)
     assert proc.returncode == 0 and proc.stdout.startswith("roadweaver-sumo ")

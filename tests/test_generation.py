@@ -48,7 +48,7 @@ def test_same_seed_same_graph_other_seed_other_graph():
     _, a = generate(density=20, width=1000, height=1000, seed=5)
     _, b = generate(density=20, width=1000, height=1000, seed=5)
     _, c = generate(density=20, width=1000, height=1000, seed=6)
-    key = lambda G: sorted((u, v, G.edges[u, v]["coords"].tobytes()) for u, v in G.edges)  # noqa: E731
+    key = lambda G: sorted((u, v, G.edges[u, v]["coords"].tobytes()) for u, v in G.edges)
     assert key(a) == key(b)
     assert key(a) != key(c)
 

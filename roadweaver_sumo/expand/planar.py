@@ -193,6 +193,46 @@ def keep_largest_component(G: nx.Graph) -> None:
         G.remove_nodes_from(comp)
 
 
+def turn_angles(coords: np.ndarray) -> np.ndarray:
+    """Heading change (radians, 0..π) at each interior vertex of a polyline."""
+    d = np.diff(coords, axis=0)
+    heading = np.arctan2(d[:, 1], d[:, 0])
+    return np.abs((np.diff(heading) + np.pi) % (2 * np.pi) - np.pi)
+
+
+def round_corners(coords: np.ndarray, max_turn_deg: float, radius: float) -> np.ndarray:
+    """Replace every vertex that turns by more than ``max_turn_deg`` with a quadratic Bézier
+    fillet, so lanes offset from the centreline do not fold over at sharp bends."""
+    coords = coords[np.r_[True, np.hypot(*np.diff(coords, axis=0).T) > 1e-6]]
+    if len(coords) < 3:
+        return coords
+    turns = turn_angles(coords)
+    if turns.max() <= math.radians(max_turn_deg):
+        return coords
+    out = [coords[0]]
+    for k in range(1, len(coords) - 1):
+        a, b, c = coords[k - 1], coords[k], coords[k + 1]
+        turn = turns[k - 1]
+        if turn <= math.radians(max_turn_deg):
+            out.append(b)
+            continue
+        ab, bc = np.hypot(*(b - a)), np.hypot(*(c - b))
+        r = min(radius, 0.45 * ab, 0.45 * bc)
+        p0 = b + (a - b) * (r / ab)
+        p2 = b + (c - b) * (r / bc)
+        t = np.linspace(0.0, 1.0, max(3, int(math.degrees(turn) / 10) + 2))[:, None]
+        out.extend((1 - t) ** 2 * p0 + 2 * (1 - t) * t * b + t**2 * p2)
+    out.append(coords[-1])
+    return np.asarray(out)
+
+
+def smooth_bends(G: nx.Graph, max_turn_deg: float = 30.0, radius: float = 20.0) -> None:
+    """Round the sharp bends of every road (perimeter corners, joins at dissolved nodes)."""
+    for u, v in G.edges:
+        data = G.edges[u, v]
+        data["coords"] = round_corners(data["coords"], max_turn_deg, radius)
+
+
 def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: float) -> None:
     """The whole clean-up, repeated until nothing changes."""
     for _ in range(10):
@@ -206,3 +246,4 @@ def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: f
         dissolve_degree_two(G)
         if (G.number_of_nodes(), G.number_of_edges()) == before:
             break
+    smooth_bends(G)

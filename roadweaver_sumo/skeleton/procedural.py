@@ -86,16 +86,16 @@ def basis_field(spec: ScenarioSpec, rng: np.random.Generator) -> TensorField:
 
 def growth_params(spec: ScenarioSpec, spacing: float, **overrides) -> GrowthParams:
     jitter, inertia, max_turn, _ = STYLE_PARAMS[spec.style]
-    base = dict(
-        step=10.0,
-        max_turn=max_turn,
-        w_inertia=inertia,
-        jitter=jitter,
-        snap_radius=25.0,
-        parallel_gap=0.5 * spacing,
-        max_length=4 * max(spec.width, spec.height),
-        min_angle=35.0,
-    )
+    base = {
+        "step": 10.0,
+        "max_turn": max_turn,
+        "w_inertia": inertia,
+        "jitter": jitter,
+        "snap_radius": 25.0,
+        "parallel_gap": 0.5 * spacing,
+        "max_length": 4 * max(spec.width, spec.height),
+        "min_angle": 35.0,
+    }
     base.update(overrides)
     return GrowthParams(**base)
 
