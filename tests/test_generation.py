@@ -69,3 +69,11 @@ def test_rectangular_maps_fill_their_whole_extent():
     xy = np.array([G.nodes[n]["xy"] for n in G.nodes])
     assert xy[:, 0].max() > 2300 and xy[:, 1].max() > 700
     assert abs(road_node_count(G) / spec.area_km2 - 30) / 30 <= 0.05
+
+
+def test_roads_have_no_sharp_bends():
+    from roadweaver_sumo.expand.planar import turn_angles
+
+    _, G = generate(density=30, width=1500, height=1500, style="radial", seed=2)
+    worst = max(turn_angles(G.edges[e]["coords"]).max(initial=0.0) for e in G.edges)
+    assert math.degrees(worst) <= 30.0

@@ -40,10 +40,14 @@ def reconnect_dangles(
     road_mask = _rasterise_edges(G, cost.shape, res)
     for n in dangling_ends(G, margin):
         (w,) = G.neighbors(n)
-        own = rasterise_polylines([G.edges[n, w]["coords"]], cost.shape, res)
+        # The roads at the dead end's own junction are not targets: a link onto them would
+        # make a loop back to where the road started, not a new connection.
+        base = [(w, x) for x in G.neighbors(w)]
+        own = rasterise_polylines([G.edges[e]["coords"] for e in base], cost.shape, res)
         path = _cheapest_link(np.asarray(G.nodes[n]["xy"]), cost, road_mask & ~own, res, radius)
         if path is not None:
-            path = _snap_end(path, lines, tree, position.get((n, w), position.get((w, n))))
+            skip = {position.get(e, position.get(e[::-1])) for e in base}
+            path = _snap_end(path, lines, tree, skip)
         if path is not None:
             links.append(path)
     return links
@@ -79,10 +83,10 @@ def _rasterise_edges(G: nx.Graph, shape, res: float) -> np.ndarray:
     return rasterise_polylines([G.edges[e]["coords"] for e in G.edges], shape, res)
 
 
-def _snap_end(path: np.ndarray, lines: list, tree, own: int) -> np.ndarray | None:
-    """Move the path's last point onto the nearest road other than the dangle's own."""
+def _snap_end(path: np.ndarray, lines: list, tree, skip: set) -> np.ndarray | None:
+    """Move the path's last point onto the nearest road not in ``skip``."""
     end = shapely.Point(path[-1])
-    near = [k for k in tree.query(end, predicate="dwithin", distance=20.0) if k != own]
+    near = [k for k in tree.query(end, predicate="dwithin", distance=20.0) if k not in skip]
     if not near:
         return None
     k = min(near, key=lambda k: (lines[k].distance(end), k))

@@ -1,0 +1,69 @@
+"""Tensor fields, the streamline tracer and A* reconnection on hand-made inputs."""
+
+import math
+
+import numpy as np
+
+from roadweaver_sumo.expand.planar import build_planar_graph
+from roadweaver_sumo.expand.reconnect import reconnect_dangles
+from roadweaver_sumo.streamlines import GrowthParams, SegmentIndex, clamp_turn, trace
+from roadweaver_sumo.tensor_field import TensorField, from_angles, structure_tensor
+
+
+def uniform_field(theta: float, shape=(50, 50), res=10.0) -> TensorField:
+    return from_angles(np.full(shape, theta), np.ones(shape), res)
+
+
+def test_structure_tensor_follows_skeleton_tangents():
+    xs = np.linspace(50, 450, 41)
+    points = np.column_stack([xs, np.full_like(xs, 250.0)])
+    tangents = np.tile([1.0, 0.0], (len(xs), 1))
+    field, support = structure_tensor(points, tangents, (50, 50), 10.0, sigma=60, radius=180)
+    assert abs(field.major(250, 300)[1]) < 1e-6  # horizontal next to a horizontal road
+    assert support[25, 25] > 0 and support[0, 0] == 0  # no support beyond the radius
+
+
+def test_tangents_of_opposite_sign_do_not_cancel():
+    points = np.array([[100.0, 100.0], [100.0, 100.0]])
+    tangents = np.array([[0.0, 1.0], [0.0, -1.0]])
+    field, _ = structure_tensor(points, tangents, (20, 20), 10.0, sigma=30, radius=90)
+    assert abs(abs(field.major(100, 110)[1]) - 1.0) < 1e-6
+
+
+def test_clamp_limits_the_turn():
+    d = clamp_turn(np.array([1.0, 0.0]), np.array([0.0, 1.0]), math.radians(15))
+    assert math.isclose(math.degrees(math.atan2(d[1], d[0])), 15.0)
+
+
+def test_front_snaps_onto_a_crossing_road_and_stops_at_the_border():
+    index = SegmentIndex()
+    index.add(np.array([[300.0, 0.0], [300.0, 500.0]]), road_id=0)
+    params = GrowthParams(jitter=0.0)
+    rng = np.random.default_rng(0)
+    hit = trace(np.array([100.0, 250.0]), np.array([1.0, 0.0]), uniform_field(0.0), index,
+                (500, 500), params, rng)
+    assert hit.end == "snap" and np.allclose(hit.coords[-1], [300.0, 250.0])
+    away = trace(np.array([200.0, 250.0]), np.array([-1.0, 0.0]), uniform_field(0.0), index,
+                 (500, 500), params, rng)
+    assert away.end == "boundary" and math.isclose(away.coords[-1][0], 0.0, abs_tol=1e-9)
+
+
+def test_front_running_alongside_a_road_is_blocked():
+    index = SegmentIndex()
+    index.add(np.array([[0.0, 270.0], [500.0, 270.0]]), road_id=0)
+    tr = trace(np.array([100.0, 250.0]), np.array([1.0, 0.0]), uniform_field(0.0), index,
+               (500, 500), GrowthParams(jitter=0.0, parallel_gap=40.0), np.random.default_rng(0))
+    assert tr.end == "blocked"
+
+
+def test_a_star_links_a_dangling_end_to_the_nearest_road():
+    roads = [(np.array([[0.0, 100.0], [400.0, 100.0]]), "arterial"),
+             (np.array([[200.0, 100.0], [200.0, 160.0]]), "local"),
+             (np.array([[0.0, 260.0], [400.0, 260.0]]), "arterial")]
+    G = build_planar_graph(roads, 400, 400)
+    cost = np.ones((40, 40))
+    links = reconnect_dangles(G, cost, 10.0, radius=200.0, margin=30.0)
+    assert len(links) == 1
+    start, end = links[0][0], links[0][-1]
+    assert np.allclose(start, [200.0, 160.0])
+    assert math.isclose(end[1], 260.0, abs_tol=1e-6)  # ends exactly on the other road
