@@ -17,6 +17,7 @@ STYLES = ("grid", "radial", "organic", "mixed")
 SKELETONS = ("procedural",)
 MAX_SIDE_M = 50_000.0
 MIN_SIDE_M = 200.0
+MAX_VEHICLES = 1_000_000
 DEFAULT_GEO_ORIGIN = (48.137, 11.575)  # lat, lon: only a label for the local metric frame
 
 # Stage ids for np.random.default_rng([seed, STAGE]): each stage draws from its own stream, so
@@ -43,8 +44,10 @@ class ScenarioSpec:
         _check_positive_number("density", self.density)
         if self.density > 400:
             raise RoadweaverError(f"--density {self.density:g} is above 400 road nodes/km²")
-        if not isinstance(self.vehicles, int) or self.vehicles < 0:
-            raise RoadweaverError(f"--vehicles must be a whole number >= 0, got {self.vehicles!r}")
+        if isinstance(self.vehicles, bool) or not isinstance(self.vehicles, int):
+            raise RoadweaverError(f"--vehicles must be a whole number, got {self.vehicles!r}")
+        if not 1 <= self.vehicles <= MAX_VEHICLES:
+            raise RoadweaverError(f"--vehicles must be 1..{MAX_VEHICLES}, got {self.vehicles}")
         for name in ("width", "height"):
             side = getattr(self, name)
             _check_positive_number(f"map {name}", side)
@@ -58,7 +61,7 @@ class ScenarioSpec:
             raise RoadweaverError(
                 f"unknown skeleton {self.skeleton!r}; choose one of {', '.join(SKELETONS)}"
             )
-        if not isinstance(self.seed, int) or self.seed < 0:
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise RoadweaverError(f"--seed must be a whole number >= 0, got {self.seed!r}")
         _check_positive_number("--duration", self.duration)
 

@@ -14,7 +14,7 @@ from roadweaver_sumo.spec import ScenarioSpec
 
 
 def generate(**kw):
-    spec = ScenarioSpec(vehicles=0, **kw)
+    spec = ScenarioSpec(vehicles=1, **kw)
     return spec, expand_skeleton(spec, make_skeleton(spec))
 
 

@@ -35,6 +35,11 @@ def test_spec_round_trips_through_json(tmp_path):
         (["--density", "nan", "--vehicles", "5"], "density must be > 0"),
         (["--density", "abc", "--vehicles", "5"], "invalid float value"),
         (["--vehicles", "5"], "required: --density"),
+        (["--density", "30", "--vehicles", "0"], "--vehicles must be 1.."),
+        (["--density", "30", "--vehicles", "5", "--seed", "-1"], "--seed must be"),
+        (["--density", "30", "--vehicles", "5", "--duration", "0"], "--duration must be > 0"),
+        (["--density", "900", "--vehicles", "5"], "above 400"),
+        (["--density", "30", "--vehicles", "5", "--skeleton", "magic"], "unknown skeleton"),
     ],
 )
 def test_bad_input_gives_one_line_error(tmp_path, capsys, args, message):
