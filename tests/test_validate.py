@@ -137,3 +137,9 @@ def test_simulation_that_cannot_load_raises_a_one_line_error(healthy, tmp_path):
     with pytest.raises(RoadweaverError, match="sumo could not load .*nowhere") as caught:
         run_simulation(tmp_path, wall_cap_s=10.0, routing_tasks=1)
     assert "\n" not in str(caught.value)
+
+
+def test_report_without_validation_figures_fails_with_one_line(tmp_path):
+    report = json.loads(write_report(tmp_path, {"validated": False}).read_text())
+    assert report["passed"] is False and report["schema_version"] == 1
+    assert report["failures"] == ["not validated: the report has no net or simulation figures"]
