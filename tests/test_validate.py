@@ -102,7 +102,7 @@ def test_healthy_grid_scenario_passes_every_threshold(healthy):
     assert report["failures"] == [] and report["passed"] is True
     sim = report["simulation"]
     assert sim["arrived"] >= 0.99 * 120 and sim["completed"] and sim["collisions"] == 0
-    assert sim["routing_success_rate"] == 1.0
+    assert sim["routing_success_rate"] == 1.0 and sim["collision_sites"] == []
     assert timing["sim_s_per_wall_s"] > 0 and timing["routing_ms_per_route"] > 0
     first = write_report(healthy, report).read_bytes()
     again, _ = validate_scenario(healthy)

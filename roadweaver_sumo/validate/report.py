@@ -131,6 +131,7 @@ def summary_lines(report: dict) -> list[str]:
     al = net["alignment"]
     verdict = "PASSED" if report["passed"] else "FAILED"
     ending = "completed" if sim["completed"] else "STOPPED by the wall-clock cap"
+    sites = ", ".join(f"{site} x{n}" for site, n in sim.get("collision_sites", [])[:3])
     lines = [
         (
             f"{verdict}: {sc['vehicles']} vehicles over {sc['duration']:g} s"
@@ -149,7 +150,8 @@ def summary_lines(report: dict) -> list[str]:
         (
             f"simulation: {sim['arrived']}/{sc['vehicles']} arrived"
             f" ({100 * sim['arrived_ratio']:.1f} %), {sim['teleports_total']} teleports,"
-            f" {sim['collisions']} collisions, {ending} at {sim['sim_end_s']:g} s"
+            f" {sim['collisions']} collisions{f' ({sites})' if sites else ''},"
+            f" {ending} at {sim['sim_end_s']:g} s"
         ),
         (
             f"trips: mean travel {sim['mean_travel_time_s']:.1f} s,"

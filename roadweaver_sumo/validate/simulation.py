@@ -17,6 +17,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +29,8 @@ from ..sumo_tools import child_env
 
 VEHICLE_TYPE = "DEFAULT_VEHTYPE"  # SUMO's default car (vClass passenger)
 VEHICLE_CLASS = "passenger"
-HARD_TIMEOUT_MARGIN_S = 120.0  # loading and routing time on top of the cap, before we kill it
+HARD_TIMEOUT_MARGIN_S = 120.0
+MAX_COLLISION_SITES = 10  # reported in the results, most frequent first  # loading and routing time on top of the cap, before we kill it
 
 
 def run_simulation(
@@ -91,10 +93,11 @@ def _simulate(
     caller's process never loads it (SUMO_HOME is already set by ``child_env``)."""
     import libsumo
 
-    stats = Path(tmp) / "statistics.xml"
+    stats, collisions = Path(tmp) / "statistics.xml", Path(tmp) / "collisions.xml"
     t0 = time.perf_counter()
     try:
         libsumo.start(["sumo", "-c", cfg, "--statistic-output", str(stats),
+                       "--collision-output", str(collisions),
                        "--duration-log.statistics", "true", "--no-step-log", "true",
                        "--routing-algorithm", "astar"])  # fmt: skip
     except libsumo.TraCIException as exc:
@@ -110,7 +113,7 @@ def _simulate(
     finally:
         libsumo.close()
     results = {"completed": completed, "sim_end_s": sim_end, **_read_statistics(stats)}
-    results.update(routing)
+    results.update(routing, collision_sites=_collision_sites(collisions))
     timing = {
         "load_s": t1 - t0,
         "simulation_wall_s": t2 - t1,
@@ -184,6 +187,18 @@ def _read_statistics(path: Path) -> dict:
         "mean_time_loss_s": number("vehicleTripStatistics", "timeLoss"),
         "mean_route_length_m": number("vehicleTripStatistics", "routeLength"),
     }
+
+
+def _collision_sites(path: Path, most: int = MAX_COLLISION_SITES) -> list:
+    """Where collisions happened, most frequent first: ``[["junction n206", 7], ...]`` (a list,
+    so the order survives JSON with sorted keys); points a failed check at the geometry to fix."""
+    counts = Counter(_site(c.get("lane", "")) for c in etree.parse(str(path)).iter("collision"))
+    return [[site, n] for site, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))[:most]]
+
+
+def _site(lane: str) -> str:
+    """``junction <id>`` for an internal lane (``:<junction>_<link>_<lane>``), else ``lane <id>``."""
+    return f"junction {lane[1:].rsplit('_', 2)[0]}" if lane.startswith(":") else f"lane {lane}"
 
 
 def _last_line(log: Path) -> str:
