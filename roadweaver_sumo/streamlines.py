@@ -86,21 +86,28 @@ class SegmentIndex:
 
 def choose_axis(field: TensorField, p: np.ndarray, d: np.ndarray) -> np.ndarray:
     """Paper Eq. (3): the eigen-direction among ±e_major, ±e_minor best aligned with ``d``."""
-    e = field.major_at(p[0], p[1])
-    candidates = np.array([e, -e, [-e[1], e[0]], [e[1], -e[0]]])
-    return candidates[int(np.argmax(candidates @ d))]
+    ex, ey = field.major_at(float(p[0]), float(p[1]))
+    dx, dy = float(d[0]), float(d[1])
+    along, across = ex * dx + ey * dy, ex * dy - ey * dx  # d·e_major, d·e_minor
+    if abs(along) >= abs(across):
+        sign = 1.0 if along >= 0 else -1.0
+        return np.array([sign * ex, sign * ey])
+    sign = 1.0 if across >= 0 else -1.0
+    return np.array([-sign * ey, sign * ex])
 
 
 def clamp_turn(d_old: np.ndarray, d_new: np.ndarray, max_turn_rad: float) -> np.ndarray:
     """The operator C_θmax of Eq. (4): rotate ``d_new`` back to at most θmax away from ``d_old``."""
-    ang = math.atan2(d_old[0] * d_new[1] - d_old[1] * d_new[0], float(d_old @ d_new))
+    ox, oy, nx, ny = float(d_old[0]), float(d_old[1]), float(d_new[0]), float(d_new[1])
+    ang = math.atan2(ox * ny - oy * nx, ox * nx + oy * ny)
     ang = max(-max_turn_rad, min(max_turn_rad, ang))
     return rotate(d_old, ang)
 
 
 def rotate(v: np.ndarray, ang: float) -> np.ndarray:
     c, s = math.cos(ang), math.sin(ang)
-    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+    x, y = float(v[0]), float(v[1])
+    return np.array([c * x - s * y, s * x + c * y])
 
 
 def next_direction(field, p, d, params: GrowthParams, rng: np.random.Generator) -> np.ndarray:

@@ -21,7 +21,7 @@ class TensorField:
     c2: np.ndarray  # a cos 2θ, shape (ny, nx)
     s2: np.ndarray  # a sin 2θ
     res: float
-    _unit: np.ndarray | None = field(default=None, repr=False, compare=False)
+    _unit: list | None = field(default=None, repr=False, compare=False)
 
     def _cell(self, x, y):
         ny, nx = self.c2.shape
@@ -35,15 +35,16 @@ class TensorField:
         theta = 0.5 * np.arctan2(self.s2[i, j], self.c2[i, j])
         return np.stack([np.cos(theta), np.sin(theta)], axis=-1)
 
-    def major_at(self, x: float, y: float) -> np.ndarray:
-        """Fast scalar version of :meth:`major` for the tracer's inner loop."""
+    def major_at(self, x: float, y: float) -> tuple[float, float]:
+        """Fast scalar version of :meth:`major` for the tracer's inner loop (plain floats: numpy
+        call overhead would dominate a single lookup)."""
         if self._unit is None:
             theta = 0.5 * np.arctan2(self.s2, self.c2)
-            self._unit = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
+            self._unit = np.stack([np.cos(theta), np.sin(theta)], axis=-1).tolist()
         ny, nx = self.c2.shape
         i = min(max(int(y / self.res), 0), ny - 1)
         j = min(max(int(x / self.res), 0), nx - 1)
-        return self._unit[i, j]
+        return self._unit[i][j]
 
     def anisotropy(self, x, y):
         i, j = self._cell(x, y)
