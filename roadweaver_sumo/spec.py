@@ -18,11 +18,12 @@ SKELETONS = ("procedural",)
 MAX_SIDE_M = 50_000.0
 MIN_SIDE_M = 200.0
 MAX_VEHICLES = 1_000_000
+MIN_ROAD_NODES = 4
 DEFAULT_GEO_ORIGIN = (48.137, 11.575)  # lat, lon: only a label for the local metric frame
 
 # Stage ids for np.random.default_rng([seed, STAGE]): each stage draws from its own stream, so
 # changing one stage never shifts the random numbers of another.
-STAGE_SKELETON, STAGE_GROWTH, STAGE_RECONNECT, STAGE_FILL = 1, 2, 3, 4
+STAGE_SKELETON, STAGE_GROWTH, STAGE_FILL = 1, 2, 4
 
 
 @dataclass(frozen=True)
@@ -64,6 +65,13 @@ class ScenarioSpec:
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise RoadweaverError(f"--seed must be a whole number >= 0, got {self.seed!r}")
         _check_positive_number("--duration", self.duration)
+        nodes = self.density * self.area_km2
+        if nodes < MIN_ROAD_NODES:
+            raise RoadweaverError(
+                f"a {self.width:g} x {self.height:g} m map at {self.density:g} road nodes/km² "
+                f"holds only {nodes:.1f} road nodes; ask for at least {MIN_ROAD_NODES} "
+                "(a larger --size or a higher --density)"
+            )
 
     @property
     def area_km2(self) -> float:
@@ -71,7 +79,7 @@ class ScenarioSpec:
 
     @property
     def target_road_nodes(self) -> int:
-        return max(4, round(self.density * self.area_km2))
+        return round(self.density * self.area_km2)
 
     @property
     def name(self) -> str:

@@ -77,3 +77,15 @@ def test_roads_have_no_sharp_bends():
     _, G = generate(density=30, width=1500, height=1500, style="radial", seed=2)
     worst = max(turn_angles(G.edges[e]["coords"]).max(initial=0.0) for e in G.edges)
     assert math.degrees(worst) <= 30.0
+
+
+def test_blocks_that_are_one_long_road_still_get_split():
+    # At density 2 the first blocks are bounded mostly by the perimeter road alone: a fill road
+    # must be able to start and end on the same road.
+    spec, G = generate(density=2, width=2000, height=2000, style="radial", seed=0)
+    assert road_node_count(G) == spec.target_road_nodes
+
+
+def test_very_flat_maps_get_roads():
+    spec, G = generate(density=10, width=5000, height=800, style="grid", seed=0)
+    assert road_node_count(G) == spec.target_road_nodes

@@ -40,6 +40,7 @@ def test_spec_round_trips_through_json(tmp_path):
         (["--density", "30", "--vehicles", "5", "--duration", "0"], "--duration must be > 0"),
         (["--density", "900", "--vehicles", "5"], "above 400"),
         (["--density", "30", "--vehicles", "5", "--skeleton", "magic"], "unknown skeleton"),
+        (["--density", "5", "--vehicles", "5", "--size", "500"], "holds only 1.2 road nodes"),
     ],
 )
 def test_bad_input_gives_one_line_error(tmp_path, capsys, args, message):

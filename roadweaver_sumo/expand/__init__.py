@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import networkx as nx
 
+from ..errors import RoadweaverError
 from ..metrics import road_node_count
 from ..roadgraph import add_road, edge_coords
 from ..skeleton import Skeleton
@@ -19,6 +20,7 @@ MIN_ANGLE = 30.0  # degrees between roads at a junction
 BORDER_MARGIN = 30.0  # dead ends this close to the border are roads cut off by the map edge
 DENSITY_ROUNDS = 4  # fill/prune/clean rounds: clean-up may merge junctions, so measure again
 DENSITY_TOLERANCE = 0.02
+DENSITY_LIMIT = 0.10  # beyond this the request counts as impossible (issue 2: within 10 %)
 
 
 def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
@@ -45,7 +47,20 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
         clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN)
         if abs(road_node_count(G) - target) <= max(1, DENSITY_TOLERANCE * target):
             break
+    _check_density(spec, road_node_count(G))
     return _relabel(G)
+
+
+def _check_density(spec: ScenarioSpec, achieved: int) -> None:
+    """A map that misses the requested density is an error, not a silent approximation."""
+    target = spec.target_road_nodes
+    if abs(achieved - target) > max(1, DENSITY_LIMIT * target):
+        raise RoadweaverError(
+            f"could place only {achieved} road nodes ({achieved / spec.area_km2:.1f}/km²) "
+            f"for the requested {spec.density:g}/km² on a {spec.width:g} x {spec.height:g} m "
+            "map; blocks cannot be split further without roads closer than "
+            f"{MIN_EDGE:g} m or junction angles below {MIN_ANGLE:g}°"
+        )
 
 
 def _renode(G: nx.Graph, extra: list) -> nx.Graph:

@@ -142,29 +142,35 @@ def _ends_ok(face: Polygon, nodes: np.ndarray, chord, min_edge: float, min_angle
 
 
 def insert_chord(G: nx.Graph, chord: np.ndarray, min_edge: float) -> bool:
-    """Split the two roads the chord ends on and add the chord as a local road between them.
+    """Split the road(s) the chord ends on and add the chord as a local road between them.
 
-    Refused when the chord touches any road other than the two it ends on (a dead-end road
+    Refused when the chord touches any road other than those it ends on (a dead-end road
     inside the block, say), so the graph stays planar without re-noding."""
-    edges = list(G.edges)
-    lines = np.array([LineString(G.edges[e]["coords"]) for e in edges])
     line = LineString(chord)
-    touching = np.flatnonzero(shapely.dwithin(lines, line, 0.5))
-    ends = []
-    for point in (chord[0], chord[-1]):
-        dist = shapely.distance(lines[touching], Point(point))
-        k = int(np.argmin(dist)) if len(dist) else -1
-        if k < 0 or dist[k] > 1.0:
-            return False
-        ends.append(edges[touching[k]])
-    if len(touching) > 2 or ends[0] == ends[1]:
+    touching = _edges_near(G, line, 0.5)
+    if not 1 <= len(touching) <= 2:
         return False
-    nodes = [split_edge_at(G, e, point, min_edge) for e, point in zip(ends, (chord[0], chord[-1]))]
+    nodes = []
+    for point in (chord[0], chord[-1]):
+        # Look the edge up again for the second end: splitting for the first may have cut it.
+        near = _edges_near(G, Point(point), 1.0)
+        if not near:
+            return False
+        nodes.append(split_edge_at(G, near[0], point, min_edge))
     u, v = nodes
     if u == v or G.has_edge(u, v):
         return False
     add_road(G, u, v, chord, "local")
     return True
+
+
+def _edges_near(G: nx.Graph, geom, distance: float) -> list:
+    """Edges within ``distance`` of ``geom``, nearest first."""
+    edges = list(G.edges)
+    lines = np.array([LineString(G.edges[e]["coords"]) for e in edges])
+    dist = shapely.distance(lines, geom)
+    order = np.argsort(dist, kind="stable")
+    return [edges[k] for k in order if dist[k] <= distance]
 
 
 def split_edge_at(G: nx.Graph, edge, point, tolerance: float):

@@ -13,6 +13,7 @@ import math
 import networkx as nx
 import numpy as np
 import shapely
+import shapely.ops
 from scipy.spatial import cKDTree
 
 from ..roadgraph import ROAD_CLASSES, add_road, edge_coords, edge_length, new_road_graph
@@ -58,16 +59,24 @@ def build_planar_graph(roads: list[tuple[np.ndarray, str]], width: float, height
 
 
 def add_piece(G: nx.Graph, u: int, v: int, coords: np.ndarray, cls: str) -> None:
-    """Add a road u-v; a self-loop or a second road between the same nodes gets a shape node in
-    its middle so the graph stays simple (SUMO and the lane builder need distinct node pairs)."""
-    if (u == v or G.has_edge(u, v)) and len(coords) >= 3:
-        k = len(coords) // 2
-        m = max(G.nodes) + 1
-        G.add_node(m, xy=(float(coords[k][0]), float(coords[k][1])))
-        add_road(G, u, m, coords[: k + 1], cls)
-        add_road(G, m, v, coords[k:], cls)
-    elif u != v and not G.has_edge(u, v):
+    """Add a road u-v. A second road between the same nodes gets a shape node in its middle, a
+    closed loop two, so the graph stays simple (SUMO and the lane builder need distinct node
+    pairs)."""
+    if u != v and not G.has_edge(u, v):
         add_road(G, u, v, coords, cls)
+        return
+    line = shapely.LineString(coords)
+    cuts = [0.5] if u != v else [1 / 3, 2 / 3]
+    ends = [u]
+    for frac in cuts:
+        p = line.interpolate(frac, normalized=True)
+        m = max(G.nodes) + 1
+        G.add_node(m, xy=(float(p.x), float(p.y)))
+        ends.append(m)
+    ends.append(v)
+    marks = [0.0] + [f * line.length for f in cuts] + [line.length]
+    for a, b, s0, s1 in zip(ends[:-1], ends[1:], marks[:-1], marks[1:]):
+        add_road(G, a, b, np.asarray(shapely.ops.substring(line, s0, s1).coords), cls)
 
 
 def merge_nodes(G: nx.Graph, keep: int, drop: int) -> None:

@@ -115,7 +115,7 @@ def trace_arterials(spec: ScenarioSpec, field: TensorField, frame, rng) -> list[
         if _too_close(index, p, 0.6 * spacing, field, family):
             continue
         line = _trace_both_ways(p, family, field, index, bounds, params, rng)
-        if _length(line) < spacing:
+        if _length(line) < min(spacing, 0.5 * min(spec.width, spec.height)):
             continue
         road_id = len(lines)
         index.add(line, road_id)
