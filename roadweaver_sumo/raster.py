@@ -5,19 +5,23 @@ from __future__ import annotations
 import numpy as np
 
 
+def sample_polyline(line: np.ndarray, spacing: float) -> np.ndarray:
+    """Points along ``line`` at most ``spacing`` apart, both ends included."""
+    line = np.asarray(line, dtype=float)
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(line, axis=0).T))])
+    marks = np.linspace(0.0, s[-1], max(2, int(np.ceil(s[-1] / spacing)) + 1))
+    return np.column_stack([np.interp(marks, s, line[:, 0]), np.interp(marks, s, line[:, 1])])
+
+
 def rasterise_polylines(lines, shape: tuple[int, int], res: float) -> np.ndarray:
     """Boolean mask of the raster cells (``res`` metres each) that the polylines pass through."""
     mask = np.zeros(shape, dtype=bool)
+    lines = [line for line in lines if len(line) >= 2]
+    if not lines:
+        return mask
+    pts = np.vstack([sample_polyline(line, res / 2) for line in lines])
     ny, nx = shape
-    for line in lines:
-        line = np.asarray(line, dtype=float)
-        seg = np.diff(line, axis=0)
-        n = np.maximum(np.ceil(np.hypot(*seg.T) / (res / 2)).astype(int), 1)
-        pts = np.vstack(
-            [a + np.linspace(0, 1, k, endpoint=False)[:, None] * d for a, d, k in zip(line, seg, n)]
-            + [line[-1:]]
-        )
-        i = np.clip((pts[:, 1] / res).astype(int), 0, ny - 1)
-        j = np.clip((pts[:, 0] / res).astype(int), 0, nx - 1)
-        mask[i, j] = True
+    i = np.clip((pts[:, 1] / res).astype(int), 0, ny - 1)
+    j = np.clip((pts[:, 0] / res).astype(int), 0, nx - 1)
+    mask[i, j] = True
     return mask

@@ -159,6 +159,7 @@ def trace(
     p = np.asarray(start, dtype=float)
     d = np.asarray(direction, dtype=float) / np.hypot(*direction)
     pts = [p.copy()]
+    own = _OwnPath(p, params)
     travelled = 0.0
     min_cos = math.cos(math.radians(params.min_angle))
     while True:
@@ -183,30 +184,62 @@ def trace(
                 pts.append(p + hits[k] * d)
                 return Trace(np.array(pts), "snap")
         q = p + params.step * d
-        own = _meets_itself(pts, q, params)
-        if own is not None:
-            return own
+        met = _meets_itself(own, pts, q, params)
+        if met is not None:
+            return met
         if not (0 <= q[0] <= width and 0 <= q[1] <= height):
             pts.append(_clip_to_box(p, q, width, height))
             return Trace(np.array(pts), "boundary")
         p = q
         pts.append(p.copy())
+        own.add(p)
         travelled += params.step
         if travelled >= params.max_length:
             return Trace(np.array(pts), "length")
 
 
-def _meets_itself(pts: list, q: np.ndarray, params: GrowthParams) -> Trace | None:
+class _OwnPath:
+    """The points a front has laid so far, hashed on a grid so that checking whether the front
+    comes back to its own path costs O(1) per step rather than O(path length)."""
+
+    def __init__(self, start: np.ndarray, params: GrowthParams):
+        self.cell = params.parallel_gap
+        self.recent = int(3 * params.parallel_gap / params.step) + 2
+        self.cells: dict[tuple[int, int], list[int]] = defaultdict(list)
+        self.pts: list[tuple[float, float]] = []
+        self.add(start)
+
+    def add(self, p: np.ndarray) -> None:
+        x, y = float(p[0]), float(p[1])
+        self.cells[(int(x // self.cell), int(y // self.cell))].append(len(self.pts))
+        self.pts.append((x, y))
+
+    def nearest_older(self, q: np.ndarray) -> tuple[int, float]:
+        """Index of and distance to the nearest point laid more than ``recent`` steps ago."""
+        x, y = float(q[0]), float(q[1])
+        cx, cy = int(x // self.cell), int(y // self.cell)
+        limit = len(self.pts) - self.recent
+        best, best_d = -1, math.inf
+        for i in range(cx - 1, cx + 2):
+            for j in range(cy - 1, cy + 2):
+                for k in self.cells.get((i, j), ()):
+                    if k < limit:
+                        d = math.hypot(self.pts[k][0] - x, self.pts[k][1] - y)
+                        if d < best_d or (d == best_d and k < best):
+                            best, best_d = k, d
+        return best, best_d
+
+
+def _meets_itself(own: _OwnPath, pts: list, q: np.ndarray, params: GrowthParams):
     """A front that comes back to its own start closes a ring; one that comes back alongside
     its own earlier path stops (streamlines of radial fields would otherwise spiral forever)."""
-    recent = int(3 * params.parallel_gap / params.step) + 2
-    if len(pts) <= recent:
+    if len(pts) <= own.recent:
         return None
-    older = np.asarray(pts[:-recent])
-    dist = np.hypot(older[:, 0] - q[0], older[:, 1] - q[1])
-    if dist[0] < params.snap_radius:
+    x, y = float(q[0]), float(q[1])
+    if math.hypot(pts[0][0] - x, pts[0][1] - y) < params.snap_radius:
         return Trace(np.array(pts + [pts[0]]), "loop")
-    if dist.min() < params.parallel_gap:
+    _, dist = own.nearest_older(q)
+    if dist < params.parallel_gap:
         return Trace(np.array(pts), "blocked")
     return None
 

@@ -21,6 +21,7 @@ from ..metrics import road_node_count
 from ..roadgraph import add_road, edge_coords, edge_length
 from ..streamlines import choose_axis, clamp_turn
 from ..tensor_field import TensorField
+from .edge_index import EdgeIndex
 
 STEP = 10.0
 
@@ -43,13 +44,14 @@ def fill_to_density(
     heap = [(-f.area, k, f) for k, f in enumerate(sorted(faces(G), key=lambda f: f.bounds))]
     heapq.heapify(heap)
     counter = len(heap)
+    index = EdgeIndex(G)
     while heap and road_node_count(G) < target - 1:
         _, _, face = heapq.heappop(heap)
         nodes = np.array([G.nodes[n]["xy"] for n in G.nodes])
         chord = split_chord(face, nodes, field, rng, min_edge, min_angle)
         if chord is None:
             continue
-        if not insert_chord(G, chord, min_edge):
+        if not insert_chord(G, chord, min_edge, index):
             continue
         for part in shapely.get_parts(shapely.ops.split(face, _extended(chord, 1.0))):
             if part.area > 1.0:
@@ -141,39 +143,30 @@ def _ends_ok(face: Polygon, nodes: np.ndarray, chord, min_edge: float, min_angle
     return True
 
 
-def insert_chord(G: nx.Graph, chord: np.ndarray, min_edge: float) -> bool:
+def insert_chord(G: nx.Graph, chord: np.ndarray, min_edge: float, index: EdgeIndex) -> bool:
     """Split the road(s) the chord ends on and add the chord as a local road between them.
 
     Refused when the chord touches any road other than those it ends on (a dead-end road
     inside the block, say), so the graph stays planar without re-noding."""
-    line = LineString(chord)
-    touching = _edges_near(G, line, 0.5)
+    touching = index.near(LineString(chord), 0.5)
     if not 1 <= len(touching) <= 2:
         return False
     nodes = []
     for point in (chord[0], chord[-1]):
         # Look the edge up again for the second end: splitting for the first may have cut it.
-        near = _edges_near(G, Point(point), 1.0)
+        near = index.near(Point(point), 1.0)
         if not near:
             return False
-        nodes.append(split_edge_at(G, near[0], point, min_edge))
+        nodes.append(split_edge_at(G, near[0], point, min_edge, index))
     u, v = nodes
     if u == v or G.has_edge(u, v):
         return False
     add_road(G, u, v, chord, "local")
+    index.add(u, v)
     return True
 
 
-def _edges_near(G: nx.Graph, geom, distance: float) -> list:
-    """Edges within ``distance`` of ``geom``, nearest first."""
-    edges = list(G.edges)
-    lines = np.array([LineString(G.edges[e]["coords"]) for e in edges])
-    dist = shapely.distance(lines, geom)
-    order = np.argsort(dist, kind="stable")
-    return [edges[k] for k in order if dist[k] <= distance]
-
-
-def split_edge_at(G: nx.Graph, edge, point, tolerance: float):
+def split_edge_at(G: nx.Graph, edge, point, tolerance: float, index: EdgeIndex):
     """Insert a node on road ``edge`` at ``point`` (or reuse an end node within tolerance)."""
     u, v = edge
     coords = edge_coords(G, u, v)
@@ -188,9 +181,12 @@ def split_edge_at(G: nx.Graph, edge, point, tolerance: float):
     second = shapely.ops.substring(line, s, line.length)
     node = max(G.nodes) + 1
     G.add_node(node, xy=tuple(np.asarray(second.coords[0])))
+    index.remove(u, v)
     G.remove_edge(u, v)
     add_road(G, u, node, np.asarray(first.coords), cls)
     add_road(G, node, v, np.asarray(second.coords), cls)
+    index.add(u, node)
+    index.add(node, v)
     return node
 
 

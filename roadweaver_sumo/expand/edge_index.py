@@ -1,0 +1,60 @@
+"""A spatial index over the roads of a graph that is being edited (shapely's STRtree is static)."""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+
+import networkx as nx
+import numpy as np
+import shapely
+from shapely.geometry import LineString
+
+
+def edge_key(u, v) -> tuple:
+    return (u, v) if u <= v else (v, u)
+
+
+class EdgeIndex:
+    """Uniform grid of cells, each listing the roads whose bounding box overlaps it."""
+
+    def __init__(self, G: nx.Graph, cell: float = 100.0):
+        self.G = G
+        self.cell = cell
+        self.cells: dict[tuple[int, int], set] = defaultdict(set)
+        self.lines: dict[tuple, LineString] = {}
+        for u, v in G.edges:
+            self.add(u, v)
+
+    def _cells(self, bounds, pad: float = 0.0):
+        x0, y0, x1, y1 = bounds
+        for cx in range(math.floor((x0 - pad) / self.cell), math.floor((x1 + pad) / self.cell) + 1):
+            for cy in range(
+                math.floor((y0 - pad) / self.cell), math.floor((y1 + pad) / self.cell) + 1
+            ):
+                yield cx, cy
+
+    def add(self, u, v) -> None:
+        key = edge_key(u, v)
+        line = LineString(self.G.edges[u, v]["coords"])
+        self.lines[key] = line
+        for c in self._cells(line.bounds):
+            self.cells[c].add(key)
+
+    def remove(self, u, v) -> None:
+        key = edge_key(u, v)
+        line = self.lines.pop(key)
+        for c in self._cells(line.bounds):
+            self.cells[c].discard(key)
+
+    def near(self, geom, distance: float) -> list[tuple]:
+        """Roads within ``distance`` of ``geom``, nearest first (ties by id: deterministic)."""
+        found: set = set()
+        for c in self._cells(geom.bounds, pad=distance):
+            found |= self.cells.get(c, set())
+        keys = sorted(found)
+        if not keys:
+            return []
+        dist = shapely.distance(np.array([self.lines[k] for k in keys]), geom)
+        order = np.argsort(dist, kind="stable")
+        return [keys[k] for k in order if dist[k] <= distance]
