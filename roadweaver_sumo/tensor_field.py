@@ -21,7 +21,7 @@ class TensorField:
     c2: np.ndarray  # a cos 2θ, shape (ny, nx)
     s2: np.ndarray  # a sin 2θ
     res: float
-    _unit: list | None = field(default=None, repr=False, compare=False)
+    _unit: tuple | None = field(default=None, repr=False, compare=False)
 
     def _cell(self, x, y):
         ny, nx = self.c2.shape
@@ -39,12 +39,13 @@ class TensorField:
         """Fast scalar version of :meth:`major` for the tracer's inner loop (plain floats: numpy
         call overhead would dominate a single lookup)."""
         if self._unit is None:
-            theta = 0.5 * np.arctan2(self.s2, self.c2)
-            self._unit = np.stack([np.cos(theta), np.sin(theta)], axis=-1).tolist()
+            theta = 0.5 * np.arctan2(self.s2, self.c2).ravel()
+            self._unit = (np.cos(theta).tolist(), np.sin(theta).tolist())
         ny, nx = self.c2.shape
         i = min(max(int(y / self.res), 0), ny - 1)
         j = min(max(int(x / self.res), 0), nx - 1)
-        return self._unit[i][j]
+        k = i * nx + j
+        return self._unit[0][k], self._unit[1][k]
 
     def anisotropy(self, x, y):
         i, j = self._cell(x, y)
