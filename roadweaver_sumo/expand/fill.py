@@ -23,7 +23,7 @@ from ..streamlines import choose_axis, clamp_turn
 from ..tensor_field import TensorField
 from .edge_index import EdgeIndex
 
-STEP = 10.0
+STEP = 20.0  # metres per Euler step of a fill road (locals are short and gently curved)
 
 
 def faces(G: nx.Graph) -> list[Polygon]:
@@ -109,7 +109,7 @@ def _trace_in_face(face: Polygon, start, d, field: TensorField):
     boundary = face.exterior
     pts = [np.asarray(start, float)]
     p, d = pts[0], np.asarray(d, float)
-    for chunk in (8, 16, 32, 64, 128, 256):
+    for chunk in (4, 8, 16, 32, 64, 128):
         first = len(pts) - 1
         for _ in range(chunk):
             d = clamp_turn(d, choose_axis(field, p, d), math.radians(8.0))
