@@ -82,7 +82,7 @@ def _make_scenario(args) -> int:
     out = args.out if args.out is not None else Path("scenarios") / spec.name
     log = (lambda msg: None) if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
     result = make_scenario(spec, out, force=args.force, validate=not args.no_validate, log=log)
-    return _finish(result.out_dir, result.report, args.json)
+    return _finish(result.out_dir, result.report, args.json, "wrote")
 
 
 def _validate(args) -> int:
@@ -99,10 +99,10 @@ def _validate(args) -> int:
             report["generation"] = previous["generation"]
     write_report(folder, report)
     report = json.loads(old.read_text(encoding="utf-8"))
-    return _finish(folder, report, args.json)
+    return _finish(folder, report, args.json, "validated")
 
 
-def _finish(folder: Path, report: dict | None, as_json: bool) -> int:
+def _finish(folder: Path, report: dict | None, as_json: bool, verb: str) -> int:
     from .validate.report import check_thresholds, summary_lines
 
     if report is None or report.get("validated") is False:
@@ -111,7 +111,7 @@ def _finish(folder: Path, report: dict | None, as_json: bool) -> int:
     if as_json:
         print(json.dumps(report, indent=2, sort_keys=True))
     else:
-        print(f"wrote {folder}")
+        print(f"{verb} {folder}")
         for line in summary_lines(report):
             print(f"  {line}")
     failures = check_thresholds(report)
