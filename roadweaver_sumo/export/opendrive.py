@@ -1,0 +1,276 @@
+"""HD map to ASAM OpenDRIVE 1.7 (``map.xodr``), written from the HD map's lane graph only.
+
+* Every HD map road becomes a ``<road>`` (same id, name ``r<id>``) whose reference line is the
+  road centreline within its lane section, as G1 lines and arcs (``opendrive_geometry``);
+  ``f`` lanes are right lanes ``-1..-n``, ``b`` lanes left lanes ``1..n`` (HD map index 0, the
+  outermost lane, is ``-n`` / ``n``). Both ends link to junctions (chapter "Road linkage").
+* Every connector lane becomes a one-lane connecting road (ids after the roads, name = the
+  connector id) whose reference line is the connector's Bezier as an exact ``paramPoly3``;
+  a ``laneOffset`` of half the (linearly changing) width centres lane ``-1`` on it.
+* Every junction gets one ``<connection>`` per connecting road, ``contactPoint="start"`` and
+  one ``laneLink`` (chapter "Junctions", rule junctions.connection.one_connection_element);
+  connecting roads carry road- and lane-level predecessor and successor links. Lanes of roads
+  that end in junctions carry no ``<link>`` (rule road.lane.link.no_link): their links are the
+  junction's laneLinks and the connecting roads' lane links.
+* Traffic-light junctions get a ``<controller>`` and one signal per incoming road direction.
+
+Output is deterministic: sorted ids, fixed decimals, fixed header date.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+from lxml import etree
+
+from ..hdmap.geometry import cut
+from ..hdmap.model import DIRECTIONS, HDMap, Lane, Road
+from .opendrive_geometry import DECIMALS, Piece, bezier_pieces, fillet_pieces
+
+CURVATURE_DECIMALS = 15  # an arc's end moves by length^2 / 2 times the curvature's rounding
+DATE = "2025-01-01T00:00:00"  # fixed, so that two runs write the same bytes
+ROAD_TYPES = {"arterial": "townArterial", "collector": "townCollector", "local": "townLocal"}
+MARK_WIDTH = 0.12  # m
+SIGNAL_SETBACK = 1.0  # m before the road end
+SIGNAL_CATALOGUE = {"country": "DE", "type": "1000001", "subtype": "-1"}  # StVO traffic light
+
+
+def write_opendrive(hd: HDMap, path: Path) -> Path:
+    """Write ``hd`` as OpenDRIVE 1.7 to ``path`` (parent folders created); return the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    etree.ElementTree(opendrive_tree(hd)).write(str(path), pretty_print=True,
+                                                xml_declaration=True, encoding="UTF-8")
+    return path
+
+
+def opendrive_tree(hd: HDMap) -> etree._Element:
+    """The ``<OpenDRIVE>`` element of ``hd``: header, roads, connecting roads, controllers,
+    junctions, in that (schema) order."""
+    plans = {rid: fillet_pieces(reference_line(hd.roads[rid])) for rid in sorted(hd.roads)}
+    connecting = connecting_road_ids(hd)
+    signals, controllers = _traffic_lights(hd, plans)
+    root = etree.Element("OpenDRIVE")
+    root.append(_header(hd))
+    for rid, plan in plans.items():
+        root.append(_road(hd, hd.roads[rid], plan, signals.get(rid, [])))
+    connectors = hd.connectors()
+    pieces = bezier_pieces(np.array([lane.bezier for lane in connectors]).reshape(-1, 4, 2))
+    for lane, piece in zip(connectors, pieces, strict=True):
+        root.append(_connecting_road(hd, lane, connecting[lane.id], piece))
+    root.extend(controllers)
+    for jid in sorted(hd.junctions):
+        if hd.junctions[jid].connectors:
+            root.append(_junction(hd, jid, connecting))
+    return root
+
+
+def reference_line(road: Road) -> np.ndarray:
+    """The road centreline within its lane section: the HD map lanes' reference line."""
+    section = road.sections[0]
+    return cut(road.centreline, section.s_start, section.s_end)
+
+
+def connecting_road_ids(hd: HDMap) -> dict[str, int]:
+    """OpenDRIVE road id of each connector lane: numbered after the roads, junction order."""
+    first = max(hd.roads, default=-1) + 1
+    return {lane.id: first + k for k, lane in enumerate(hd.connectors())}
+
+
+def xodr_lane_id(hd: HDMap, lane: Lane) -> int:
+    """OpenDRIVE lane id: ``f`` lanes right (``-1`` innermost), ``b`` lanes left (``1``
+    innermost); a connector is lane ``-1`` of its connecting road."""
+    if lane.kind == "connector":
+        return -1
+    inner_rank = len(hd.roads[lane.road].lanes(lane.direction)) - lane.index
+    return -inner_rank if lane.direction == "f" else inner_rank
+
+
+def _num(x: float, decimals: int = DECIMALS) -> str:
+    """Fixed-decimal formatting, without ``-0``."""
+    text = f"{x:.{decimals}f}"
+    return text[1:] if text[0] == "-" and not text.strip("-0.") else text
+
+
+def _attrs(attrs: dict) -> dict[str, str]:
+    """Attribute strings: floats with fixed decimals, a trailing ``_`` dropped (``from_``)."""
+    return {k.rstrip("_"): _num(v) if isinstance(v, float) else str(v) for k, v in attrs.items()}
+
+
+def _elem(tag: str, **attrs) -> etree._Element:
+    """A new element with formatted attributes."""
+    return etree.Element(tag, _attrs(attrs))
+
+
+def _sub(parent: etree._Element, tag: str, **attrs) -> etree._Element:
+    """A new child element with formatted attributes."""
+    return etree.SubElement(parent, tag, _attrs(attrs))
+
+
+def _header(hd: HDMap) -> etree._Element:
+    """``<header>`` with the map extent and a transverse Mercator geo-reference centred on
+    the local origin (chapter "Georeferencing": PROJ string)."""
+    header = _elem("header", revMajor=1, revMinor=7, name="roadweaver-sumo", version="1.0",
+                   date=DATE, north=float(hd.height), south=0.0, east=float(hd.width), west=0.0,
+                   vendor="roadweaver-sumo")
+    if hd.geo_origin is not None:
+        lat, lon = hd.geo_origin
+        proj = (f"+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +ellps=WGS84"
+                " +units=m +no_defs")
+        etree.SubElement(header, "geoReference").text = etree.CDATA(proj)
+    return header
+
+
+def _plan_view(parent: etree._Element, pieces: list[Piece]) -> None:
+    """``<planView>``: one ``<geometry>`` per piece (chapter "Geometry")."""
+    plan = _sub(parent, "planView")
+    for p in pieces:
+        geometry = _sub(plan, "geometry", s=p.s, x=p.x, y=p.y, hdg=p.hdg, length=p.length)
+        if p.kind == "line":
+            _sub(geometry, "line")
+        elif p.kind == "arc":
+            _sub(geometry, "arc", curvature=_num(p.curvature, CURVATURE_DECIMALS))
+        else:
+            coeffs = {f"{c}{axis}": float(value) for axis, values in (("U", p.u), ("V", p.v))
+                      for c, value in zip("abcd", values, strict=True)}
+            _sub(geometry, "paramPoly3", **coeffs, pRange="normalized")
+
+
+def _road_element(rid: int, name: str, junction: int, pieces: list[Piece]) -> etree._Element:
+    """An empty ``<road>`` as long as its plan view, right-hand traffic."""
+    length = sum(p.length for p in pieces)
+    return _elem("road", id=rid, name=name, junction=junction, length=length, rule="RHT")
+
+
+def _road(hd: HDMap, road: Road, pieces: list[Piece], signals: list) -> etree._Element:
+    """A road between two junctions: its two driving directions as right and left lanes."""
+    elem = _road_element(road.id, f"r{road.id}", -1, pieces)
+    link = _sub(elem, "link")
+    for tag, node in (("predecessor", road.from_node), ("successor", road.to_node)):
+        if hd.junctions[node].connectors:
+            _sub(link, tag, elementType="junction", elementId=node)
+    _road_type(elem, road.road_class, road.speed)
+    _plan_view(elem, pieces)
+    section = _sub(_sub(elem, "lanes"), "laneSection", s=0.0)
+    n = len(road.lanes("f"))
+    left = _sub(section, "left")
+    for lane_id in road.lanes("b"):  # outermost (id n) first: descending ids
+        _road_lane(left, hd.lanes[lane_id], xodr_lane_id(hd, hd.lanes[lane_id]), n)
+    centre = _sub(_sub(section, "center"), "lane", id=0, type="none")
+    _mark(centre, "solid" if road.road_class == "arterial" else "broken")
+    right = _sub(section, "right")
+    for lane_id in reversed(road.lanes("f")):  # innermost (id -1) first: descending ids
+        _road_lane(right, hd.lanes[lane_id], xodr_lane_id(hd, hd.lanes[lane_id]), n)
+    if signals:
+        _sub(elem, "signals").extend(signals)
+    return elem
+
+
+def _road_type(road: etree._Element, road_class: str, speed: float) -> None:
+    """``<type>`` from the road class, with the class speed limit (chapter "Road type")."""
+    kind = _sub(road, "type", s=0.0, type=ROAD_TYPES.get(road_class, "town"))
+    _sub(kind, "speed", max=float(speed), unit="m/s")
+
+
+def _road_lane(parent: etree._Element, lane: Lane, xid: int, n: int) -> None:
+    """A road lane: constant width, its outer road mark, speed limit. No ``<link>``: the road
+    ends in junctions at both ends (rule road.lane.link.no_link)."""
+    elem = _sub(parent, "lane", id=xid, type="driving")
+    _sub(elem, "width", sOffset=0.0, a=float(lane.width), b=0.0, c=0.0, d=0.0)
+    _mark(elem, "solid" if abs(xid) == n else "broken")
+    _sub(elem, "speed", sOffset=0.0, max=float(lane.speed), unit="m/s")
+
+
+def _mark(lane: etree._Element, kind: str) -> None:
+    """A white road mark on the lane's outer border (``broken`` lines may be crossed)."""
+    _sub(lane, "roadMark", sOffset=0.0, type=kind, weight="standard", color="standard",
+         width=MARK_WIDTH, laneChange="both" if kind == "broken" else "none")
+
+
+def _contact(lane: Lane, arriving: bool) -> str:
+    """Which end of its road a road lane touches the junction with: ``f`` lanes arrive at the
+    reference line's end and leave from its start, ``b`` lanes the other way round."""
+    return "end" if (lane.direction == "f") == arriving else "start"
+
+
+def _connecting_road(hd: HDMap, lane: Lane, rid: int, piece: Piece) -> etree._Element:
+    """A connector as a one-lane connecting road inside its junction (chapter "Junctions":
+    connecting roads) along ``piece``, linked to its incoming and outgoing road and lanes."""
+    incoming, outgoing = hd.lanes[lane.predecessors[0]], hd.lanes[lane.successors[0]]
+    elem = _road_element(rid, lane.id, lane.junction, [piece])
+    link = _sub(elem, "link")
+    _sub(link, "predecessor", elementType="road", elementId=incoming.road,
+         contactPoint=_contact(incoming, arriving=True))
+    _sub(link, "successor", elementType="road", elementId=outgoing.road,
+         contactPoint=_contact(outgoing, arriving=False))
+    _road_type(elem, lane.road_class, lane.speed)
+    _plan_view(elem, [piece])
+    slope = (lane.end_width - lane.width) / piece.length  # linear width along s
+    lanes = _sub(elem, "lanes")
+    _sub(lanes, "laneOffset", s=0.0, a=lane.width / 2.0, b=slope / 2.0, c=0.0, d=0.0)
+    section = _sub(lanes, "laneSection", s=0.0)
+    _sub(_sub(section, "center"), "lane", id=0, type="none")
+    right = _sub(_sub(section, "right"), "lane", id=-1, type="driving")
+    lane_link = _sub(right, "link")
+    _sub(lane_link, "predecessor", id=xodr_lane_id(hd, incoming))
+    _sub(lane_link, "successor", id=xodr_lane_id(hd, outgoing))
+    _sub(right, "width", sOffset=0.0, a=float(lane.width), b=slope, c=0.0, d=0.0)
+    _sub(right, "speed", sOffset=0.0, max=float(lane.speed), unit="m/s")
+    return elem
+
+
+def _junction(hd: HDMap, jid: int, connecting: dict[str, int]) -> etree._Element:
+    """``<junction>``: one connection per connecting road, from its incoming road."""
+    junction = hd.junctions[jid]
+    elem = _elem("junction", id=jid, name=f"n{jid}", type="default")
+    for k, lane_id in enumerate(junction.connectors):
+        incoming = hd.lanes[hd.lanes[lane_id].predecessors[0]]
+        connection = _sub(elem, "connection", id=k, incomingRoad=incoming.road,
+                          connectingRoad=connecting[lane_id], contactPoint="start")
+        _sub(connection, "laneLink", from_=xodr_lane_id(hd, incoming), to=-1)
+    if junction.type == "traffic_light":
+        _sub(elem, "controller", id=jid, type="0", sequence=0)
+    return elem
+
+
+def _traffic_lights(hd: HDMap, plans: dict[int, list[Piece]]):
+    """Signals per road (dict road id -> ``<signal>`` elements) and one ``<controller>`` per
+    traffic-light junction listing them (chapter "Signals": controllers). A signal stands
+    right of each road direction arriving at the junction, ``SIGNAL_SETBACK`` before its end,
+    valid for all lanes of that direction."""
+    signals, controllers = defaultdict(list), []
+    count = 0
+    for jid in sorted(hd.junctions):
+        junction = hd.junctions[jid]
+        if junction.type != "traffic_light" or not junction.connectors:
+            continue
+        controller = _elem("controller", id=jid, name=f"n{jid}")
+        for rid in junction.roads:
+            road = hd.roads[rid]
+            for direction in DIRECTIONS:
+                if road.ends_at(direction) != jid:
+                    continue
+                signals[rid].append(_signal(road, direction, plans[rid], count, jid))
+                _sub(controller, "control", signalId=count, type="0")
+                count += 1
+        controllers.append(controller)
+    return signals, controllers
+
+
+def _signal(road: Road, direction: str, pieces: list[Piece], sid: int, jid: int):
+    """One traffic light for driving direction ``direction`` of ``road`` (orientation ``+``
+    faces traffic along the reference line)."""
+    length = sum(p.length for p in pieces)
+    setback = min(SIGNAL_SETBACK, length / 2.0)
+    n = len(road.lanes(direction))
+    side = -1.0 if direction == "f" else 1.0
+    elem = _elem("signal", s=length - setback if direction == "f" else setback,
+                 t=side * (n * road.lane_width + 0.5), id=sid,
+                 name=f"n{jid}_r{road.id}_{direction}", dynamic="yes",
+                 orientation="+" if direction == "f" else "-", zOffset=2.0,
+                 **SIGNAL_CATALOGUE, height=0.9, width=0.3)
+    lanes = (-n, -1) if direction == "f" else (1, n)
+    _sub(elem, "validity", fromLane=lanes[0], toLane=lanes[1])
+    return elem
