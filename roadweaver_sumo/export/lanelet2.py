@@ -1,0 +1,396 @@
+"""HD map to a lanelet2-format OpenStreetMap file (``map.osm``).
+
+Every HD map lane (road lanes and junction connectors) becomes one lanelet. lanelet2 derives its
+topology from shared primitives, not from tags, so the file is built around identity:
+
+* lanes of one driving direction that are neighbours share their common boundary *way* (lane
+  changes). Every way runs in its lanes' driving direction, because lanelet2 guesses the
+  orientation of bounds from their middle vertices (``geometry::align``) and a wrong guess
+  reverses a lanelet: the two directions of a road get a solid centre line each rather than one
+  shared inverted way, and boundaries are untangled (loops and fold-backs that offsetting a
+  sharp bend leaves are cut) before they are written;
+* a lane and each of its successors share the *nodes* at the end of the one and the start of the
+  other (the routing graph's "following" relation). Node identity is found with a union-find over
+  way end points driven by the HD map's successor links, so lanes that diverge from one lane start
+  at the same nodes and lanes that merge into one lane end at the same nodes.
+
+Ids are positive, unique across nodes, ways and relations (Tactics2D's ``Map`` keeps one id space)
+and assigned in a fixed order, so the same HD map gives the same bytes. Coordinates are a
+transverse Mercator projection (scale 1) centred on ``hd.geo_origin`` — the projection SUMO's
+``location`` element declares — written to 1e-10 degrees; lanelet2's ``LocalCartesianProjector``
+at the same origin reads them back within a millimetre on maps of a few kilometres (its
+``UtmProjector`` does not: UTM's 0.9996 scale alone moves points by 40 cm per kilometre).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from lxml import etree
+from shapely.geometry import LineString
+
+from ..hdmap.model import HDMap, Lane
+from ..scenario.xmlfile import write_xml
+
+GENERATOR = "roadweaver-sumo"
+LANE_TAG = "roadweaver:lane"  # the HD map lane id of a lanelet, for loaders and debugging
+DEGREE_DECIMALS = 10  # 1e-10 degrees is about 0.01 mm
+TRAFFIC_LIGHT_OFFSET_M = 1.0
+MIN_STEP_M = 1e-3  # shorter boundary steps are dropped  # the traffic light way sits this far past the stop line
+
+# lanelet2 tagging spec (lanelet2_core/doc/LinestringTagging.md)
+DASHED = (("type", "line_thin"), ("subtype", "dashed"))  # lane change allowed both ways
+SOLID = (("type", "line_thin"), ("subtype", "solid"))  # centre line between the two directions
+CURB = (("type", "curbstone"), ("subtype", "high"))  # outer road edge
+VIRTUAL = (("type", "virtual"),)  # inside junctions: no physical marking
+
+# WGS84 ellipsoid and the Krüger series of the transverse Mercator projection to fourth order in
+# the third flattening n (Karney 2011, "Transverse Mercator with an accuracy of a few
+# nanometers", Eqs. 35-36): micrometre-exact within hundreds of kilometres of the origin.
+_A, _F = 6378137.0, 1 / 298.257223563
+_N = _F / (2 - _F)
+_E = 2 * np.sqrt(_N) / (1 + _N)  # first eccentricity
+_RECTIFYING = _A / (1 + _N) * (1 + _N**2 / 4 + _N**4 / 64)
+_ALPHA = np.array([_N / 2 - 2 * _N**2 / 3 + 5 * _N**3 / 16 + 41 * _N**4 / 180,
+                   13 * _N**2 / 48 - 3 * _N**3 / 5 + 557 * _N**4 / 1440,
+                   61 * _N**3 / 240 - 103 * _N**4 / 140,
+                   49561 * _N**4 / 161280])
+_BETA = np.array([_N / 2 - 2 * _N**2 / 3 + 37 * _N**3 / 96 - _N**4 / 360,
+                  _N**2 / 48 + _N**3 / 15 - 437 * _N**4 / 1440,
+                  17 * _N**3 / 480 - 37 * _N**4 / 840,
+                  4397 * _N**4 / 161280])
+_DELTA = np.array([2 * _N - 2 * _N**2 / 3 - 2 * _N**3 + 116 * _N**4 / 45,
+                   7 * _N**2 / 3 - 8 * _N**3 / 5 - 227 * _N**4 / 45,
+                   56 * _N**3 / 15 - 136 * _N**4 / 35,
+                   4279 * _N**4 / 630])
+_J2 = 2 * np.arange(1, 5)
+
+
+def _tm_forward(lat, lon, lon0):
+    """Geodetic degrees to transverse Mercator metres (easting, northing from the equator)."""
+    phi, lam = np.radians(np.asarray(lat, float)), np.radians(np.asarray(lon, float) - lon0)
+    sin_phi = np.sin(phi)
+    tau = np.sinh(np.arctanh(sin_phi) - _E * np.arctanh(_E * sin_phi))  # conformal latitude
+    xi_p = np.arctan2(tau, np.cos(lam))
+    eta_p = np.arctanh(np.sin(lam) / np.sqrt(1 + tau**2))
+    xi = xi_p + np.sum(_ALPHA * np.sin(_J2 * xi_p[..., None]) * np.cosh(_J2 * eta_p[..., None]), -1)
+    eta = eta_p + np.sum(_ALPHA * np.cos(_J2 * xi_p[..., None]) * np.sinh(_J2 * eta_p[..., None]),
+                         -1)
+    return _RECTIFYING * eta, _RECTIFYING * xi
+
+
+def latlon_to_local(lat, lon, origin: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """WGS84 degrees to local metres (x east, y north) of the map whose (0, 0) is ``origin``."""
+    lat0, lon0 = origin
+    x, y = _tm_forward(lat, lon, lon0)
+    return x, y - _tm_forward(lat0, lon0, lon0)[1]
+
+
+def local_to_latlon(x, y, origin: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Local metres to WGS84 degrees: the inverse of :func:`latlon_to_local`."""
+    lat0, lon0 = origin
+    xi = (np.asarray(y, float) + _tm_forward(lat0, lon0, lon0)[1]) / _RECTIFYING
+    eta = np.asarray(x, float) / _RECTIFYING
+    xi_p = xi - np.sum(_BETA * np.sin(_J2 * xi[..., None]) * np.cosh(_J2 * eta[..., None]), -1)
+    eta_p = eta - np.sum(_BETA * np.cos(_J2 * xi[..., None]) * np.sinh(_J2 * eta[..., None]), -1)
+    chi = np.arcsin(np.sin(xi_p) / np.cosh(eta_p))  # conformal latitude
+    phi = chi + np.sum(_DELTA * np.sin(_J2 * chi[..., None]), -1)
+    return np.degrees(phi), lon0 + np.degrees(np.arctan2(np.sinh(eta_p), np.cos(xi_p)))
+
+
+def untangle(points: np.ndarray) -> np.ndarray:
+    """``points`` without the loops and fold-backs that offsetting a sharp bend leaves in a
+    boundary, and without sub-millimetre steps; the end points stay (they are shared nodes)."""
+    points = _cut_loops(np.asarray(points, float)).tolist()  # plain floats: a hot loop
+    kept = [points[0]]
+    for index, (x, y) in enumerate(points[1:], start=1):
+        if math.hypot(x - kept[-1][0], y - kept[-1][1]) < MIN_STEP_M:
+            if index == len(points) - 1 and len(kept) > 1:
+                kept[-1] = [x, y]
+            continue
+        while len(kept) >= 2 and ((kept[-1][0] - kept[-2][0]) * (x - kept[-1][0])
+                                  + (kept[-1][1] - kept[-2][1]) * (y - kept[-1][1])) < 0:
+            kept.pop()  # a turn of more than 90 degrees: the polyline folds back here
+        kept.append([x, y])
+    return np.array(kept)
+
+
+def _cut_loops(points: np.ndarray) -> np.ndarray:
+    """Replace each self-crossing loop by its crossing point (swallowtails of offset curves)."""
+    if len(points) < 4 or LineString(points).is_simple:
+        return points
+    i = 0
+    while i < len(points) - 3:
+        a, b = points[i], points[i + 1]
+        starts, ends = points[i + 2:-1], points[i + 3:]
+        t, u = _segment_crossings(a, b, starts, ends)
+        hits = np.nonzero((t >= 0) & (t <= 1) & (u >= 0) & (u <= 1))[0]
+        if len(hits):
+            j = i + 2 + hits[-1]  # the last crossing removes the largest loop
+            crossing = a + t[hits[-1]] * (b - a)
+            points = np.vstack([points[:i + 1], crossing, points[j + 1:]])
+        i += 1
+    return points
+
+
+def _segment_crossings(a, b, starts, ends):
+    """Parameters ``t`` on segment a-b and ``u`` on each segment starts-ends of their lines'
+    intersection (``inf`` for parallel segments)."""
+    d, e = b - a, ends - starts
+    denom = d[0] * e[:, 1] - d[1] * e[:, 0]
+    w = starts - a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (w[:, 0] * e[:, 1] - w[:, 1] * e[:, 0]) / denom
+        u = (w[:, 0] * d[1] - w[:, 1] * d[0]) / denom
+    parallel = np.abs(denom) < 1e-12
+    t[parallel] = u[parallel] = np.inf
+    return t, u
+
+
+@dataclass
+class _Way:
+    """One boundary way: points in driving direction, line tags, and (later) node ids."""
+
+    points: np.ndarray
+    tags: tuple
+    nodes: list[int] = field(default_factory=list)
+
+
+@dataclass
+class _Plan:
+    """Which way (keyed by its owner ``(lane id, side)``) each lane side uses, and the ways."""
+
+    slots: dict[tuple[str, str], tuple[str, str]] = field(default_factory=dict)
+    ways: dict[tuple[str, str], _Way] = field(default_factory=dict)  # in creation order
+
+
+def _lane_order(hd: HDMap) -> list[Lane]:
+    """Road lanes first, then connectors, each by id: shared end points take road coordinates."""
+    return sorted(hd.lanes.values(), key=lambda lane: (lane.kind != "road", lane.id))
+
+
+def _left_slot(hd: HDMap, lane: Lane, plan: _Plan) -> None:
+    """A lane owns its left boundary; a lane with a right neighbour uses that lane's left
+    boundary as its right one, so each line between two lanes of a direction is one way."""
+    if lane.left_neighbour is not None:
+        tags = DASHED
+    elif lane.kind == "connector":
+        tags = VIRTUAL
+    else:
+        opposite = hd.roads[lane.road].lanes("b" if lane.direction == "f" else "f")
+        tags = SOLID if opposite else CURB
+    plan.ways[(lane.id, "left")] = _Way(untangle(lane.left), tags)
+    plan.slots[(lane.id, "left")] = (lane.id, "left")
+
+
+def _right_slot(lane: Lane, plan: _Plan) -> None:
+    if lane.right_neighbour is not None:  # that lane owns the line as its left boundary
+        plan.slots[(lane.id, "right")] = (lane.right_neighbour, "left")
+        return
+    tags = VIRTUAL if lane.kind == "connector" else CURB
+    plan.ways[(lane.id, "right")] = _Way(untangle(lane.right), tags)
+    plan.slots[(lane.id, "right")] = (lane.id, "right")
+
+
+def _plan_ways(hd: HDMap) -> _Plan:
+    plan = _Plan()
+    for lane in _lane_order(hd):
+        _left_slot(hd, lane, plan)
+        _right_slot(lane, plan)
+    return plan
+
+
+def _end_point(plan: _Plan, lane_id: str, side: str, at_end: bool) -> tuple:
+    """The way end point ``(way key, 0 = first / 1 = last point)`` where a lane side starts or
+    ends."""
+    return plan.slots[(lane_id, side)], int(at_end)
+
+
+class _UnionFind:
+    def __init__(self) -> None:
+        self.parent: dict = {}
+
+    def find(self, item):
+        root = item
+        while self.parent.get(root, root) != root:
+            root = self.parent[root]
+        while item != root:  # path compression
+            self.parent[item], item = root, self.parent.get(item, item)
+        return root
+
+    def union(self, a, b) -> None:
+        ra, rb = self.find(a), self.find(b)
+        if ra != rb:
+            self.parent[rb] = ra
+
+
+class _Ids:
+    """One id counter for nodes, ways and relations, with the node coordinates."""
+
+    def __init__(self) -> None:
+        self.next = 1
+        self.node_xy: dict[int, tuple[float, float]] = {}
+
+    def new(self) -> int:
+        self.next += 1
+        return self.next - 1
+
+    def node(self, xy) -> int:
+        nid = self.new()
+        self.node_xy[nid] = (float(xy[0]), float(xy[1]))
+        return nid
+
+
+def _assign_nodes(hd: HDMap, plan: _Plan, ids: _Ids) -> None:
+    """Give every way its node ids; end points joined by a successor link share one node, placed
+    where the first way (road lanes come first) has it."""
+    joints = _UnionFind()
+    for lane in _lane_order(hd):
+        for succ in lane.successors:
+            for side in ("left", "right"):
+                joints.union(_end_point(plan, lane.id, side, True),
+                             _end_point(plan, succ, side, False))
+    shared: dict = {}
+
+    def end_node(key, end: int, xy) -> int:
+        root = joints.find((key, end))
+        if root not in shared:
+            shared[root] = ids.node(xy)
+        return shared[root]
+
+    for key, way in plan.ways.items():
+        first = end_node(key, 0, way.points[0])
+        inner = [ids.node(p) for p in way.points[1:-1]]
+        way.nodes = [first, *inner, end_node(key, 1, way.points[-1])]
+
+
+def _lane_end_node(plan: _Plan, lane_id: str, side: str) -> int:
+    key, end = _end_point(plan, lane_id, side, True)
+    return plan.ways[key].nodes[-end]  # end 0 -> nodes[0], end 1 -> nodes[-1]
+
+
+@dataclass
+class _Signal:
+    """A traffic light regulatory element of one approach (one incoming road direction)."""
+
+    id: int
+    lanes: list[str]
+    light: int  # the traffic light way
+    stop_line: int  # its ref_line
+
+
+def _signals(hd: HDMap, plan: _Plan, ids: _Ids) -> tuple[list[_Signal], dict[int, tuple]]:
+    """One traffic light per approach to a ``traffic_light`` junction: a stop line across the
+    approach's lane ends (the lanes' own end nodes) and a light way just past it."""
+    signals, ways = [], {}
+    for rid in sorted(hd.roads):
+        road = hd.roads[rid]
+        for direction in ("f", "b"):
+            lanes = road.lanes(direction)
+            junction = hd.junctions[road.ends_at(direction)]
+            if not lanes or junction.type != "traffic_light":
+                continue
+            line = [_lane_end_node(plan, lanes[0], "right")]
+            line += [_lane_end_node(plan, lane, "left") for lane in lanes]
+            across = np.subtract(ids.node_xy[line[-1]], ids.node_xy[line[0]])  # right to left
+            shift = TRAFFIC_LIGHT_OFFSET_M * np.array([across[1], -across[0]]) / np.hypot(*across)
+            light = [ids.node(np.add(ids.node_xy[n], shift)) for n in (line[0], line[-1])]
+            stop_id, light_id = ids.new(), ids.new()
+            ways[stop_id] = (line, (("type", "stop_line"),))
+            ways[light_id] = (light, (("type", "traffic_light"), ("subtype", "red_yellow_green")))
+            signals.append(_Signal(ids.new(), lanes, light_id, stop_id))
+    return signals, ways
+
+
+def speed_limit_tag(speed_mps: float) -> str:
+    """``speed_limit`` value: km/h as a bare number with two decimals at most. lanelet2 reads a
+    bare number as km/h (as it reads "50 km/h"); Tactics2D and Autoware's map validator only
+    accept a bare number, and Tactics2D's default unit is km/h too."""
+    return f"{round(speed_mps * 3.6, 2):g}"
+
+
+def _element(parent, tag: str, eid: int) -> etree._Element:
+    return etree.SubElement(parent, tag, {"id": str(eid), "visible": "true", "version": "1"})
+
+
+def _add_tags(element, tags) -> None:
+    for key, value in tags:
+        etree.SubElement(element, "tag", {"k": key, "v": value})
+
+
+def _add_way(root, wid: int, nodes: list[int], tags) -> None:
+    way = _element(root, "way", wid)
+    for nid in nodes:
+        etree.SubElement(way, "nd", {"ref": str(nid)})
+    _add_tags(way, tags)
+
+
+def _add_relation(root, rid: int, members: list[tuple[str, int, str]], tags) -> None:
+    relation = _element(root, "relation", rid)
+    for kind, ref, role in members:
+        etree.SubElement(relation, "member", {"type": kind, "ref": str(ref), "role": role})
+    _add_tags(relation, tags)
+
+
+def _degrees(value: float) -> str:
+    return f"{value:.{DEGREE_DECIMALS}f}"
+
+
+def _add_nodes(root, hd: HDMap, ids: _Ids) -> None:
+    node_ids = sorted(ids.node_xy)
+    xy = np.array([ids.node_xy[n] for n in node_ids])
+    lat, lon = local_to_latlon(xy[:, 0], xy[:, 1], hd.geo_origin)
+    for nid, la, lo in zip(node_ids, lat.tolist(), lon.tolist()):
+        etree.SubElement(root, "node", {"id": str(nid), "visible": "true", "version": "1",
+                                        "lat": _degrees(la), "lon": _degrees(lo)})
+
+
+def _add_bounds(root, hd: HDMap) -> None:
+    lat, lon = local_to_latlon([0.0, hd.width, 0.0, hd.width], [0.0, 0.0, hd.height, hd.height],
+                               hd.geo_origin)
+    etree.SubElement(root, "bounds", {"minlat": _degrees(lat.min()), "minlon": _degrees(lon.min()),
+                                      "maxlat": _degrees(lat.max()), "maxlon": _degrees(lon.max())})
+
+
+def _lanelet_tags(lane: Lane) -> tuple:
+    return (("type", "lanelet"), ("subtype", "road"), ("location", "urban"), ("one_way", "yes"),
+            ("speed_limit", speed_limit_tag(lane.speed)), (LANE_TAG, lane.id))
+
+
+def lanelet2_tree(hd: HDMap) -> etree._Element:
+    """The ``<osm>`` element of ``hd`` in lanelet2 format (see the module docstring)."""
+    if hd.geo_origin is None:
+        raise ValueError("the HD map has no geo_origin; lanelet2 files need lat/lon")
+    ids = _Ids()
+    plan = _plan_ways(hd)
+    _assign_nodes(hd, plan, ids)
+    way_ids = {key: ids.new() for key in plan.ways}
+    signals, signal_ways = _signals(hd, plan, ids)
+    regulatory = {lane: s.id for s in signals for lane in s.lanes}
+
+    root = etree.Element("osm", {"version": "0.6", "generator": GENERATOR})
+    _add_bounds(root, hd)
+    _add_nodes(root, hd, ids)
+    ways = {way_ids[key]: (way.nodes, way.tags) for key, way in plan.ways.items()} | signal_ways
+    for wid in sorted(ways):
+        _add_way(root, wid, *ways[wid])
+    relations = {s.id: ([("way", s.light, "refers"), ("way", s.stop_line, "ref_line")],
+                        (("type", "regulatory_element"), ("subtype", "traffic_light")))
+                 for s in signals}
+    for lane in sorted(hd.lanes.values(), key=lambda lane: lane.id):
+        members = [("way", way_ids[plan.slots[(lane.id, side)]], side)
+                   for side in ("left", "right")]
+        if lane.id in regulatory:
+            members.append(("relation", regulatory[lane.id], "regulatory_element"))
+        relations[ids.new()] = (members, _lanelet_tags(lane))
+    for rid in sorted(relations):
+        _add_relation(root, rid, *relations[rid])
+    return root
+
+
+def write_lanelet2(hd: HDMap, path: Path) -> Path:
+    """Write ``hd`` as a lanelet2-format OSM file and return its path."""
+    return write_xml(lanelet2_tree(hd), Path(path))
