@@ -1,0 +1,128 @@
+"""Load our lanelet2 ``map.osm`` into Tactics2D (PyPI ``tactics2d``, GPL-3.0) with lane topology.
+
+Tactics2D's ``OSMParser(lanelet2=True)`` reads lanelets, lines and regulatory elements but fills
+no successor, predecessor or neighbour sets, so its ``Router`` has nothing to plan on (NOTES.md).
+:func:`load_tactics2d_map` parses the file and then adds the lane graph: from the HD map when one
+is given, otherwise from the file's own lanelet2 topology (shared end/start nodes for
+successors, shared boundary ways for neighbours), which the writer builds from the same HD map.
+The two agree by construction (tests/test_lanelet2.py checks the file side).
+
+Traps handled here: ``Lane.add_related_lane`` silently ignores an ``int`` id (lanelet ids are
+ints), so ids go in as lists; without a projection the parser uses a flat-earth approximation
+around the first node, so we pass the writer's transverse Mercator explicitly.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from lxml import etree
+
+from ..export.lanelet2 import LANE_TAG
+from ..hdmap.model import HDMap
+from ..spec import ScenarioSpec
+
+if TYPE_CHECKING:
+    from tactics2d.map.element import Map
+
+MAP_FILE = "map.osm"
+SPEC_FILE = "spec.json"
+
+
+def load_tactics2d_map(source: str | Path, hd: HDMap | None = None,
+                       origin: tuple[float, float] | None = None) -> Map:
+    """Parse a scenario folder's ``map.osm`` (or that file itself) into a Tactics2D ``Map``
+    whose lanes carry successor, predecessor and left/right neighbour sets, so that
+    ``tactics2d.routing.Router`` plans on it.
+
+    ``origin`` (lat, lon) of the local frame comes from ``hd``, else this argument, else the
+    ``spec.json`` next to the map; local coordinates then equal the HD map's, in metres."""
+    try:
+        from tactics2d.map.parser import OSMParser
+    except ImportError:
+        raise ImportError("load_tactics2d_map needs Tactics2D: pip install tactics2d "
+                          "(GPL-3.0; see docs/lanelet2.md for a separate venv)") from None
+    osm = Path(source) / MAP_FILE if Path(source).is_dir() else Path(source)
+    origin = _origin(osm, hd, origin)
+    lat, lon = origin
+    configs = {"project_rule": {"proj": "tmerc", "lat_0": lat, "lon_0": lon, "k": 1,
+                                "x_0": 0, "y_0": 0, "ellps": "WGS84"},
+               "gps_origin": (lon, lat)}
+    map_ = OSMParser(lanelet2=True).parse(str(osm), configs=configs)
+    relations = hd_lane_relations(hd) if hd is not None else osm_lane_relations(osm)
+    add_lane_relations(map_, relations)
+    return map_
+
+
+def _origin(osm: Path, hd: HDMap | None, origin) -> tuple[float, float]:
+    if hd is not None and hd.geo_origin is not None:
+        return tuple(hd.geo_origin)
+    if origin is not None:
+        return tuple(origin)
+    spec = osm.parent / SPEC_FILE
+    if spec.exists():
+        return tuple(ScenarioSpec.from_json_file(spec).geo_origin)
+    raise ValueError(f"no geo origin for {osm}: pass hd or origin=(lat, lon), or keep "
+                     f"{SPEC_FILE} next to it")
+
+
+def hd_lane_relations(hd: HDMap) -> dict[str, dict[str, list[str]]]:
+    """The HD map's lane graph, per lane id: successors, predecessors, left and right."""
+    return {lane.id: {"successors": sorted(lane.successors),
+                      "predecessors": sorted(lane.predecessors),
+                      "left": [lane.left_neighbour] if lane.left_neighbour else [],
+                      "right": [lane.right_neighbour] if lane.right_neighbour else []}
+            for lane in hd.lanes.values()}
+
+
+def osm_lane_relations(osm: Path) -> dict[str, dict[str, list[str]]]:
+    """The lane graph as lanelet2 reads it from ``osm``: B succeeds A when B's bounds start at
+    the nodes where A's end; neighbours share a boundary way. Keyed by our lane ids."""
+    root = etree.parse(str(osm)).getroot()
+    ends = {}
+    for way in root.iter("way"):
+        nodes = way.findall("nd")
+        ends[way.get("id")] = (nodes[0].get("ref"), nodes[-1].get("ref"))
+    bounds = {}
+    for rel in root.iter("relation"):
+        tags = {t.get("k"): t.get("v") for t in rel.iter("tag")}
+        if tags.get("type") == "lanelet":
+            members = {m.get("role"): m.get("ref") for m in rel.iter("member")}
+            bounds[tags[LANE_TAG]] = (members["left"], members["right"])
+    starting_at, left_of, right_of = defaultdict(list), {}, {}
+    for lane, (left, right) in bounds.items():
+        starting_at[(ends[left][0], ends[right][0])].append(lane)
+        left_of[right] = lane  # the lane whose right bound is this way lies left of it
+        right_of[left] = lane
+    relations = {lane: {"successors": sorted(starting_at[(ends[left][1], ends[right][1])]),
+                        "predecessors": [], "left": [], "right": []}
+                 for lane, (left, right) in bounds.items()}
+    for lane, (left, right) in sorted(bounds.items()):
+        for succ in relations[lane]["successors"]:
+            relations[succ]["predecessors"].append(lane)
+        relations[lane]["left"] = [left_of[left]] if left in left_of else []
+        relations[lane]["right"] = [right_of[right]] if right in right_of else []
+    return relations
+
+
+def add_lane_relations(map_: Map, relations: dict[str, dict[str, list[str]]]) -> None:
+    """Fill the Tactics2D lanes' relation sets from ``relations`` (keyed by our lane ids, which
+    each lanelet carries in its ``roadweaver:lane`` tag)."""
+    from tactics2d.map.element import LaneRelationship
+
+    kinds = {"successors": LaneRelationship.SUCCESSOR,
+             "predecessors": LaneRelationship.PREDECESSOR,
+             "left": LaneRelationship.LEFT_NEIGHBOR, "right": LaneRelationship.RIGHT_NEIGHBOR}
+    t2d_id = {lane.custom_tags.get(LANE_TAG): lid for lid, lane in map_.lanes.items()
+              if lane.custom_tags}
+    missing = sorted(set(relations) - set(t2d_id))
+    if missing or len(t2d_id) != len(relations):
+        raise ValueError(f"the map has {len(t2d_id)} tagged lanes for {len(relations)} lanes of "
+                         f"the lane graph (missing e.g. {missing[:3]}): not the same map?")
+    for lane_id, related in relations.items():
+        lane = map_.lanes[t2d_id[lane_id]]
+        for key, kind in kinds.items():
+            # a list: add_related_lane drops a bare int id without a word
+            lane.add_related_lane([t2d_id[other] for other in related[key]], kind)
