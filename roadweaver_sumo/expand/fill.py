@@ -159,8 +159,18 @@ def insert_chord(G: nx.Graph, chord: np.ndarray, min_edge: float, index: EdgeInd
             return False
         nodes.append(split_edge_at(G, near[0], point, min_edge, index))
     u, v = nodes
-    if u == v or G.has_edge(u, v):
+    if u == v:
         return False
+    if G.has_edge(u, v):
+        # Both ends landed on one road, next to each other: a shape node in the middle of the
+        # chord keeps the graph simple (no two roads between the same pair of nodes).
+        k = len(chord) // 2
+        m = max(G.nodes) + 1
+        G.add_node(m, xy=(float(chord[k][0]), float(chord[k][1])))
+        for a, b, part in ((u, m, chord[: k + 1]), (m, v, chord[k:])):
+            add_road(G, a, b, part, "local")
+            index.add(a, b)
+        return True
     add_road(G, u, v, chord, "local")
     index.add(u, v)
     return True
