@@ -19,6 +19,7 @@ import numpy as np
 from lxml import etree
 
 Poly = tuple[float, float, float, float, float]  # start (s or sOffset), a, b, c, d
+GEOMETRY_KINDS = ("line", "spiral", "arc", "poly3", "paramPoly3")
 
 
 @dataclass
@@ -56,10 +57,11 @@ def read_roads(path: Path) -> tuple[dict[str, XodrRoad], etree._Element]:
 
 
 def _read_road(elem: etree._Element) -> XodrRoad:
+    geometries = elem.find("planView").findall("geometry")
     road = XodrRoad(
         id=elem.get("id"),
         length=float(elem.get("length")),
-        geometries=sorted(elem.find("planView").findall("geometry"), key=lambda g: float(g.get("s"))),
+        geometries=sorted(geometries, key=lambda g: float(g.get("s"))),
         offsets=[_poly(o, "s") for o in elem.iterfind("lanes/laneOffset")],
         sections=[],
     )
@@ -94,7 +96,9 @@ def reference_pose(road: XodrRoad, s: float) -> tuple[float, float, float]:
             geometry = g
     x0, y0, h0 = (float(geometry.get(k)) for k in ("x", "y", "hdg"))
     ds = s - float(geometry.get("s"))
-    kind = geometry[0]
+    kind = next((c for c in geometry if c.tag in GEOMETRY_KINDS), None)
+    if kind is None:
+        raise ValueError(f"road {road.id}: a <geometry> without a shape")
     if kind.tag == "line" or (kind.tag == "arc" and float(kind.get("curvature")) == 0.0):
         return x0 + ds * math.cos(h0), y0 + ds * math.sin(h0), h0
     if kind.tag == "arc":
