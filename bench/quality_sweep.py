@@ -13,6 +13,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from roadweaver_sumo.errors import RoadweaverError
 from roadweaver_sumo.pipeline import make_scenario
 from roadweaver_sumo.spec import ScenarioSpec
 
@@ -33,7 +34,8 @@ def main() -> None:
     ap.add_argument("--vehicles", type=int, default=500)
     ap.add_argument("--json", type=Path, default=Path("bench/results/quality_sweep.json"))
     args = ap.parse_args()
-    rows = []
+    rows: list[dict] = []
+    errors: list[dict] = []
     with tempfile.TemporaryDirectory() as tmp:
         for style in args.styles.split(","):
             for density in [float(d) for d in args.densities.split(",")]:
@@ -41,12 +43,17 @@ def main() -> None:
                     spec = ScenarioSpec(density=density, vehicles=args.vehicles, seed=seed,
                                         style=style, width=args.size, height=args.size)
                     start = time.perf_counter()
-                    res = make_scenario(spec, Path(tmp) / spec.name)
+                    try:
+                        res = make_scenario(spec, Path(tmp) / spec.name)
+                    except RoadweaverError as exc:  # an error is a result of the sweep too
+                        errors.append({"spec": spec.name, "error": str(exc)})
+                        print(f"{spec.name}: ERROR {exc}", flush=True)
+                        continue
                     rows.append(row(spec, res.report, res.failures, time.perf_counter() - start))
                     print(format_row(rows[-1]), flush=True)
-    print(summary(rows))
+    print(summary(rows) + f"; {len(errors)} errors")
     args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(rows, indent=2))
+    args.json.write_text(json.dumps({"rows": rows, "errors": errors}, indent=2))
 
 
 def row(spec: ScenarioSpec, report: dict, failures: list[str], wall: float) -> dict:
