@@ -147,22 +147,24 @@ def _road_element(rid: int, name: str, junction: int, pieces: list[Piece]) -> et
 def _road(hd: HDMap, road: Road, pieces: list[Piece], signals: list) -> etree._Element:
     """A road between two junctions: its two driving directions as right and left lanes."""
     elem = _road_element(road.id, f"r{road.id}", -1, pieces)
-    link = _sub(elem, "link")
-    for tag, node in (("predecessor", road.from_node), ("successor", road.to_node)):
-        if hd.junctions[node].connectors:
+    ends = [(tag, node) for tag, node in (("predecessor", road.from_node),
+                                          ("successor", road.to_node))
+            if hd.junctions[node].connectors]  # a junction without connectors is not written
+    if ends:
+        link = _sub(elem, "link")
+        for tag, node in ends:
             _sub(link, tag, elementType="junction", elementId=node)
     _road_type(elem, road.road_class, road.speed)
     _plan_view(elem, pieces)
     section = _sub(_sub(elem, "lanes"), "laneSection", s=0.0)
-    n = len(road.lanes("f"))
     left = _sub(section, "left")
     for lane_id in road.lanes("b"):  # outermost (id n) first: descending ids
-        _road_lane(left, hd.lanes[lane_id], xodr_lane_id(hd, hd.lanes[lane_id]), n)
+        _road_lane(left, hd, hd.lanes[lane_id])
     centre = _sub(_sub(section, "center"), "lane", id=0, type="none")
     _mark(centre, "solid" if road.road_class == "arterial" else "broken")
     right = _sub(section, "right")
     for lane_id in reversed(road.lanes("f")):  # innermost (id -1) first: descending ids
-        _road_lane(right, hd.lanes[lane_id], xodr_lane_id(hd, hd.lanes[lane_id]), n)
+        _road_lane(right, hd, hd.lanes[lane_id])
     if signals:
         _sub(elem, "signals").extend(signals)
     return elem
@@ -174,12 +176,12 @@ def _road_type(road: etree._Element, road_class: str, speed: float) -> None:
     _sub(kind, "speed", max=float(speed), unit="m/s")
 
 
-def _road_lane(parent: etree._Element, lane: Lane, xid: int, n: int) -> None:
+def _road_lane(parent: etree._Element, hd: HDMap, lane: Lane) -> None:
     """A road lane: constant width, its outer road mark, speed limit. No ``<link>``: the road
     ends in junctions at both ends (rule road.lane.link.no_link)."""
-    elem = _sub(parent, "lane", id=xid, type="driving")
+    elem = _sub(parent, "lane", id=xodr_lane_id(hd, lane), type="driving")
     _sub(elem, "width", sOffset=0.0, a=float(lane.width), b=0.0, c=0.0, d=0.0)
-    _mark(elem, "solid" if abs(xid) == n else "broken")
+    _mark(elem, "solid" if lane.index == 0 else "broken")  # index 0: the outermost lane
     _sub(elem, "speed", sOffset=0.0, max=float(lane.speed), unit="m/s")
 
 
