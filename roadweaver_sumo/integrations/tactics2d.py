@@ -88,9 +88,13 @@ def osm_lane_relations(osm: Path) -> dict[str, dict[str, list[str]]]:
     bounds = {}
     for rel in root.iter("relation"):
         tags = {t.get("k"): t.get("v") for t in rel.iter("tag")}
-        if tags.get("type") == "lanelet":
-            members = {m.get("role"): m.get("ref") for m in rel.iter("member")}
-            bounds[tags[LANE_TAG]] = (members["left"], members["right"])
+        if tags.get("type") != "lanelet":
+            continue
+        if LANE_TAG not in tags:
+            raise ValueError(f"lanelet {rel.get('id')} of {osm} has no {LANE_TAG} tag: "
+                             "not a map written by roadweaver-sumo")
+        members = {m.get("role"): m.get("ref") for m in rel.iter("member")}
+        bounds[tags[LANE_TAG]] = (members["left"], members["right"])
     starting_at, left_of, right_of = defaultdict(list), {}, {}
     for lane, (left, right) in bounds.items():
         starting_at[(ends[left][0], ends[right][0])].append(lane)
