@@ -27,10 +27,11 @@ import time
 from pathlib import Path
 
 from roadweaver_sumo.export.lanelet2 import write_lanelet2
-from roadweaver_sumo.integrations.tactics2d import hd_lane_relations, osm_lane_relations
+from roadweaver_sumo.integrations.tactics2d import hd_lane_relations
 from roadweaver_sumo.validate.lanelet2_check import (
     check_lanelet2,
     lanelet2_failures,
+    osm_lane_relations,
     random_pairs,
 )
 
@@ -156,6 +157,7 @@ def format_row(r: dict) -> str:
     text = f"{r['name']:40s} lanes={r['lanes']:5d} topo={'ok' if r['topology_matches_hdmap'] else 'DIFF'}"
     if l2.get("ok"):
         text += (f" | l2 err={l2['load_errors']} rev={len(l2['inverted_bounds'])} "
+                 f"topo={len(l2['topology_mismatches'])} "
                  f"route={l2['route_success']:.3f} {l2['route_ms']:.2f}ms "
                  f"proj={1000 * l2['projection_max_error_m']:.3f}mm")
     else:
@@ -177,6 +179,8 @@ def summary(rows: list[dict]) -> str:
         lines.append(
             f"lanelet2: load errors {sum(x['load_errors'] for x in l2)}, reversed lanelets "
             f"{sum(len(x['inverted_bounds']) for x in l2)} of {sum(x['lanelets'] for x in l2)}, "
+            f"lanelets with other links than written "
+            f"{sum(len(x['topology_mismatches']) for x in l2)}, "
             f"route success min {min(x['route_success'] for x in l2):.3f} mean "
             f"{statistics.mean(x['route_success'] for x in l2):.4f}, ms/route mean "
             f"{statistics.mean(x['route_ms'] for x in l2):.2f} max "

@@ -15,10 +15,14 @@ from roadweaver_sumo.export.lanelet2 import (
     write_lanelet2,
 )
 from roadweaver_sumo.hdmap import build_hdmap
-from roadweaver_sumo.integrations.tactics2d import hd_lane_relations, osm_lane_relations
+from roadweaver_sumo.integrations.tactics2d import hd_lane_relations
 from roadweaver_sumo.skeleton import make_skeleton
 from roadweaver_sumo.spec import ScenarioSpec
-from roadweaver_sumo.validate.lanelet2_check import check_lanelet2, lanelet2_failures
+from roadweaver_sumo.validate.lanelet2_check import (
+    check_lanelet2,
+    lanelet2_failures,
+    osm_lane_relations,
+)
 
 SPEC = ScenarioSpec(density=30, vehicles=1, width=1000, height=1000, style="organic", seed=0)
 
@@ -189,8 +193,11 @@ def test_lanelet2_loads_the_map_and_routes_random_pairs(hd, osm):
     result = check_lanelet2(osm, hd.geo_origin, pairs=1000, seed=0)
     assert lanelet2_failures(result) == []
     assert result["lanelets"] == len(hd.lanes)
-    assert result["inverted_bounds"] == [] and result["speed_limit_mismatches"] == 0
-    assert result["lane_change_relations"] > 0 and result["traffic_lights"] > 0
+    assert result["inverted_bounds"] == [] and result["topology_mismatches"] == []
+    assert result["speed_limit_mismatches"] == 0 and result["lanelets_without_following"] == 0
+    neighbours = sum(bool(lane.left_neighbour) + bool(lane.right_neighbour)
+                     for lane in hd.lanes.values())
+    assert result["lane_change_relations"] == neighbours > 0 and result["traffic_lights"] > 0
     assert result["route_success"] >= 0.99
     assert result["projection_max_error_m"] < 0.001
 

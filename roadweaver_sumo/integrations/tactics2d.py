@@ -14,15 +14,13 @@ around the first node, so we pass the writer's transverse Mercator explicitly.
 
 from __future__ import annotations
 
-from collections import defaultdict
 from pathlib import Path
 from typing import TYPE_CHECKING
-
-from lxml import etree
 
 from ..export.lanelet2 import LANE_TAG
 from ..hdmap.model import HDMap
 from ..spec import ScenarioSpec
+from ..validate.lanelet2_check import osm_lane_relations
 
 if TYPE_CHECKING:
     from tactics2d.map.element import Map
@@ -75,40 +73,6 @@ def hd_lane_relations(hd: HDMap) -> dict[str, dict[str, list[str]]]:
                       "left": [lane.left_neighbour] if lane.left_neighbour else [],
                       "right": [lane.right_neighbour] if lane.right_neighbour else []}
             for lane in hd.lanes.values()}
-
-
-def osm_lane_relations(osm: Path) -> dict[str, dict[str, list[str]]]:
-    """The lane graph as lanelet2 reads it from ``osm``: B succeeds A when B's bounds start at
-    the nodes where A's end; neighbours share a boundary way. Keyed by our lane ids."""
-    root = etree.parse(str(osm)).getroot()
-    ends = {}
-    for way in root.iter("way"):
-        nodes = way.findall("nd")
-        ends[way.get("id")] = (nodes[0].get("ref"), nodes[-1].get("ref"))
-    bounds = {}
-    for rel in root.iter("relation"):
-        tags = {t.get("k"): t.get("v") for t in rel.iter("tag")}
-        if tags.get("type") != "lanelet":
-            continue
-        if LANE_TAG not in tags:
-            raise ValueError(f"lanelet {rel.get('id')} of {osm} has no {LANE_TAG} tag: "
-                             "not a map written by roadweaver-sumo")
-        members = {m.get("role"): m.get("ref") for m in rel.iter("member")}
-        bounds[tags[LANE_TAG]] = (members["left"], members["right"])
-    starting_at, left_of, right_of = defaultdict(list), {}, {}
-    for lane, (left, right) in bounds.items():
-        starting_at[(ends[left][0], ends[right][0])].append(lane)
-        left_of[right] = lane  # the lane whose right bound is this way lies left of it
-        right_of[left] = lane
-    relations = {lane: {"successors": sorted(starting_at[(ends[left][1], ends[right][1])]),
-                        "predecessors": [], "left": [], "right": []}
-                 for lane, (left, right) in bounds.items()}
-    for lane, (left, right) in sorted(bounds.items()):
-        for succ in relations[lane]["successors"]:
-            relations[succ]["predecessors"].append(lane)
-        relations[lane]["left"] = [left_of[left]] if left in left_of else []
-        relations[lane]["right"] = [right_of[right]] if right in right_of else []
-    return relations
 
 
 def add_lane_relations(map_: Map, relations: dict[str, dict[str, list[str]]]) -> None:

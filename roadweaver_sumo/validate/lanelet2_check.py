@@ -16,6 +16,7 @@ import json
 import subprocess
 import sys
 import time
+from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +60,10 @@ def lanelet2_failures(result: dict) -> list[str]:
     if result["inverted_bounds"]:
         failures.append(f"lanelet2 reversed {len(result['inverted_bounds'])} lanelets on "
                         f"loading, e.g. {result['inverted_bounds'][0]}")
+    if result["topology_mismatches"]:
+        failures.append(f"lanelet2 sees other successors or neighbours than the file encodes "
+                        f"for {len(result['topology_mismatches'])} lanelets, e.g. "
+                        f"{result['topology_mismatches'][0]}")
     if result["routing_graph_errors"]:
         failures.append(f"{result['routing_graph_errors']} routing graph errors")
     if result["route_success"] < ROUTE_SUCCESS_TARGET:
@@ -94,6 +99,7 @@ def measure_lanelet2(osm: Path, origin: tuple[float, float], pairs: int = 1000,
         "traffic_lights": sum(1 for r in lmap.regulatoryElementLayer
                               if r.attributes["subtype"] == "traffic_light"),
         "inverted_bounds": _inverted_bounds(lanelets),
+        "topology_mismatches": _topology_mismatches(osm, graph, lanelets),
         "routing_graph_errors": len(graph.checkValidity(False)),
         "lanelets_without_following": sum(1 for ll in lanelets if not graph.following(ll)),
         "lane_change_relations": sum(len(graph.lefts(ll)) + len(graph.rights(ll))
@@ -103,6 +109,55 @@ def measure_lanelet2(osm: Path, origin: tuple[float, float], pairs: int = 1000,
     }
     result.update(_route_pairs(graph, lanelets, pairs, seed))
     return result
+
+
+def osm_lane_relations(osm: Path) -> dict[str, dict[str, list[str]]]:
+    """The lane graph as lanelet2 reads it from ``osm``: B succeeds A when B's bounds start at
+    the nodes where A's end; neighbours share a boundary way. Keyed by our lane ids."""
+    root = etree.parse(str(osm)).getroot()
+    ends = {}
+    for way in root.iter("way"):
+        nodes = way.findall("nd")
+        ends[way.get("id")] = (nodes[0].get("ref"), nodes[-1].get("ref"))
+    bounds = {}
+    for rel in root.iter("relation"):
+        tags = {t.get("k"): t.get("v") for t in rel.iter("tag")}
+        if tags.get("type") != "lanelet":
+            continue
+        if LANE_TAG not in tags:
+            raise ValueError(f"lanelet {rel.get('id')} of {osm} has no {LANE_TAG} tag: "
+                             "not a map written by roadweaver-sumo")
+        members = {m.get("role"): m.get("ref") for m in rel.iter("member")}
+        bounds[tags[LANE_TAG]] = (members["left"], members["right"])
+    starting_at, left_of, right_of = defaultdict(list), {}, {}
+    for lane, (left, right) in bounds.items():
+        starting_at[(ends[left][0], ends[right][0])].append(lane)
+        left_of[right] = lane  # the lane whose right bound is this way lies left of it
+        right_of[left] = lane
+    relations = {lane: {"successors": sorted(starting_at[(ends[left][1], ends[right][1])]),
+                        "predecessors": [], "left": [], "right": []}
+                 for lane, (left, right) in bounds.items()}
+    for lane, (left, right) in sorted(bounds.items()):
+        for succ in relations[lane]["successors"]:
+            relations[succ]["predecessors"].append(lane)
+        relations[lane]["left"] = [left_of[left]] if left in left_of else []
+        relations[lane]["right"] = [right_of[right]] if right in right_of else []
+    return relations
+
+
+def _topology_mismatches(osm: Path, graph, lanelets) -> list[str]:
+    """Lanelets whose successors or neighbours in lanelet2's routing graph differ from what the
+    file encodes (:func:`osm_lane_relations`): what lanelet2 sees is what we wrote."""
+    expected = osm_lane_relations(osm)
+    wrong = []
+    for ll in lanelets:
+        left, right = graph.left(ll), graph.right(ll)
+        seen = {"successors": sorted(_name(x) for x in graph.following(ll)),
+                "left": [_name(left)] if left else [], "right": [_name(right)] if right else []}
+        want = expected.get(_name(ll))
+        if want is None or any(seen[key] != want[key] for key in seen):
+            wrong.append(_name(ll))
+    return wrong
 
 
 def _inverted_bounds(lanelets) -> list[str]:
