@@ -245,3 +245,22 @@ def test_build_is_deterministic():
         other = b.lanes[lane_id]
         assert np.array_equal(lane.centre, other.centre)
         assert (lane.successors, lane.predecessors) == (other.successors, other.predecessors)
+
+
+def test_generated_lane_ends_point_the_driving_way():
+    """A sliver segment at a trimmed lane end used to point backwards and flip the movement
+    classification at the junction (left turns from the right lane; seen on radial, density 60,
+    seed 3, as a junction collision in SUMO)."""
+    from roadweaver_sumo.expand import expand_skeleton
+    from roadweaver_sumo.hdmap.geometry import end_tangent, start_tangent
+    from roadweaver_sumo.skeleton import make_skeleton
+    from roadweaver_sumo.spec import ScenarioSpec
+
+    spec = ScenarioSpec(density=60, vehicles=1, style="radial", seed=3)
+    hd = build_hdmap(expand_skeleton(spec, make_skeleton(spec)), spec.geo_origin)
+    for lane in hd.road_lanes():
+        c = LineString(lane.centre)
+        back = np.asarray(c.interpolate(max(c.length - 5.0, 0.0)).coords[0])
+        ahead = np.asarray(c.interpolate(min(5.0, c.length)).coords[0])
+        assert end_tangent(lane.centre) @ (lane.centre[-1] - back) > 0, lane.id
+        assert start_tangent(lane.centre) @ (ahead - lane.centre[0]) > 0, lane.id

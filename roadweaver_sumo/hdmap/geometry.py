@@ -27,10 +27,14 @@ def arc_lengths(coords: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(coords, axis=0).T))])
 
 
-def cut(coords: np.ndarray, s0: float, s1: float) -> np.ndarray:
-    """The part of a polyline between arc lengths ``s0 < s1``, ends interpolated."""
+def cut(coords: np.ndarray, s0: float, s1: float, gap: float = 0.5) -> np.ndarray:
+    """The part of a polyline between arc lengths ``s0 < s1``, ends interpolated.
+
+    Vertices closer than ``gap`` to a cut end are dropped: a sliver segment of a few
+    centimetres next to the end would give the lanes offset from it a fold, and the lane's end
+    tangent would point backwards."""
     s = arc_lengths(coords)
-    inner = (s > s0) & (s < s1)
+    inner = (s > s0 + gap) & (s < s1 - gap)
     ends = np.column_stack([np.interp([s0, s1], s, coords[:, 0]),
                             np.interp([s0, s1], s, coords[:, 1])])
     return np.vstack([ends[:1], coords[inner], ends[1:]])
