@@ -45,6 +45,17 @@ def build_parser() -> argparse.ArgumentParser:
     make.add_argument("--no-validate", action="store_true", help="skip the libsumo validation")
     make.add_argument("--json", action="store_true", help="print the report as JSON")
 
+    data = sub.add_parser("data", help="training data for the learned skeleton")
+    data_sub = data.add_subparsers(dest="data_command", required=True, parser_class=_Parser)
+    prep = data_sub.add_parser("prepare", help="cut OSM files into road-field tiles")
+    prep.add_argument("--osm", type=Path, nargs="+", required=True,
+                      help=".osm, .osm.gz, .osm.bz2 or .osm.pbf files")
+    prep.add_argument("--out", type=Path, required=True, help="dataset folder")
+    prep.add_argument("--tile", type=float, default=2000.0, help="tile side, metres")
+    prep.add_argument("--size", type=int, default=128, help="raster cells per tile side")
+    prep.add_argument("--seed", type=int, default=0)
+    prep.add_argument("--force", action="store_true", help="replace an existing dataset folder")
+
     val = sub.add_parser("validate", help="re-run the validation of a scenario folder")
     val.add_argument("dir", type=Path)
     val.add_argument("--json", action="store_true", help="print the report as JSON")
@@ -56,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         if args.command == "make-scenario":
             return _make_scenario(args)
+        if args.command == "data":
+            return _data_prepare(args)
         return _validate(args)
     except RoadweaverError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
@@ -83,6 +96,22 @@ def _make_scenario(args) -> int:
     log = (lambda msg: None) if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
     result = make_scenario(spec, out, force=args.force, validate=not args.no_validate, log=log)
     return _finish(result.out_dir, result.report, args.json, "wrote")
+
+
+def _data_prepare(args) -> int:
+    from .data.prepare import prepare_dataset
+    from .staging import staged_folder
+
+    for path in args.osm:
+        if not path.is_file():
+            raise RoadweaverError(f"OSM file {path} not found")
+    if args.tile <= 0 or args.size < 8:
+        raise RoadweaverError("--tile must be > 0 metres and --size at least 8 cells")
+    with staged_folder(args.out, args.force) as tmp:
+        manifest = prepare_dataset(args.osm, tmp, tile_m=args.tile, size=args.size,
+                                   seed=args.seed, log=lambda msg: print(f"  {msg}", file=sys.stderr))
+    print(f"wrote {args.out}: {manifest['tiles']} tiles")
+    return 0
 
 
 def _validate(args) -> int:

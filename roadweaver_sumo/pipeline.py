@@ -1,23 +1,19 @@
 """The whole path from a spec to a validated scenario folder (DESIGN.md, "Data flow").
 
-The folder is built in a hidden temporary sibling and moved into place only when complete, so an
-interrupted or failed run never leaves something that looks like a finished scenario, and an
-existing folder is replaced only with ``force``.
+The folder is built in a hidden temporary sibling and moved into place only when complete
+(``staging.staged_folder``), so an interrupted or failed run never leaves something that looks
+like a finished scenario, and an existing folder is replaced only with ``force``.
 """
 
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import tempfile
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .errors import RoadweaverError
 from .expand import expand_skeleton
 from .export.lanelet2 import write_lanelet2
 from .export.netconvert import run_netconvert
@@ -29,6 +25,7 @@ from .scenario.demand import write_demand
 from .scenario.sumocfg import write_sumocfg
 from .skeleton import make_skeleton
 from .spec import ScenarioSpec
+from .staging import staged_folder
 from .validate.report import check_thresholds, validate_scenario, write_report
 
 SPEC_FILE = "spec.json"
@@ -58,12 +55,8 @@ def make_scenario(
 ) -> ScenarioResult:
     """Generate, export, and (unless ``validate`` is False) validate one scenario."""
     out_dir = Path(out_dir)
-    if out_dir.exists() and not force:
-        raise RoadweaverError(f"output folder {out_dir} already exists; use --force to replace it")
-    if out_dir.exists() and not out_dir.is_dir():
-        raise RoadweaverError(f"output path {out_dir} exists and is not a folder")
     stages: dict[str, float] = {}
-    with _staging_dir(out_dir) as tmp:
+    with staged_folder(out_dir, force) as tmp:
         generation = build_scenario_files(spec, tmp, stages, log)
         report = None
         if validate:
@@ -78,7 +71,6 @@ def make_scenario(
             write_report(tmp, {"generation": generation, "validated": False})
             timing = {"stages_s": stages}
         (tmp / TIMING_FILE).write_text(_json(_rounded_timing(timing)), encoding="utf-8")
-        _move_into_place(tmp, out_dir, force)
     if report is not None:
         report = json.loads((out_dir / "report.json").read_text(encoding="utf-8"))
     return ScenarioResult(out_dir, report, timing)
@@ -115,41 +107,6 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
         "road_graph": graph_metrics(graph, spec.area_km2),
         "hdmap": hdmap_metrics(hdmap),
     }
-
-
-@contextmanager
-def _staging_dir(out_dir: Path) -> Iterator[Path]:
-    """A hidden temporary folder next to ``out_dir``, removed unless moved into place."""
-    parent = out_dir.parent if str(out_dir.parent) else Path(".")
-    try:
-        parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.partial-", dir=parent))
-    except OSError as exc:
-        raise RoadweaverError(f"cannot write to {parent}: {exc.strerror or exc}") from None
-    try:
-        yield tmp
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
-
-
-def _move_into_place(tmp: Path, out_dir: Path, force: bool) -> None:
-    """Swap the finished folder in; with ``force`` the old folder goes only after that worked."""
-    os.chmod(tmp, 0o755)  # mkdtemp makes it private; a scenario folder is an ordinary folder
-    old = None
-    if out_dir.exists():
-        if not force:
-            raise RoadweaverError(f"output folder {out_dir} already exists; use --force")
-        old = out_dir.with_name(f".{out_dir.name}.old-{os.getpid()}")
-        out_dir.rename(old)
-    try:
-        tmp.rename(out_dir)
-    except OSError as exc:
-        if old is not None:
-            old.rename(out_dir)
-        raise RoadweaverError(f"cannot move the scenario into {out_dir}: {exc.strerror}") from None
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
 
 
 def _rounded_timing(obj):

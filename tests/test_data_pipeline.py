@@ -13,7 +13,6 @@ import networkx as nx
 import numpy as np
 import pytest
 
-pytest.importorskip("roadweaver_sumo.data", reason="roadweaver_sumo.data not installed")
 
 from roadweaver_sumo import metrics
 from roadweaver_sumo.data.condition import (
@@ -87,7 +86,8 @@ def town_files(tmp_path_factory):
     (d / "town.osm").write_text(text)
     (d / "town.osm.gz").write_bytes(gzip.compress(text.encode()))
     (d / "town.osm.bz2").write_bytes(bz2.compress(text.encode()))
-    osmium = pytest.importorskip("osmium")
+    import osmium
+
     with osmium.SimpleWriter(str(d / "town.osm.pbf")) as writer:
         for obj in osmium.FileProcessor(str(d / "town.osm")):
             writer.add(obj)
@@ -315,3 +315,19 @@ def test_reads_an_osmnx_graphml(tmp_path):
     G = read_graphml(tmp_path / "city.graphml")
     assert G.number_of_edges() == 2 and metrics.road_node_count(G) == 2
     assert G.edges["2", "3"]["road_class"] == "collector" and len(G.edges["2", "3"]["coords"]) == 3
+
+
+def test_cli_data_prepare_writes_a_dataset_and_keeps_existing_folders(town_files, tmp_path, capsys):
+    from roadweaver_sumo.cli import main
+
+    out = tmp_path / "ds"
+    args = ["data", "prepare", "--osm", str(town_files / "town.osm.pbf"), "--out", str(out),
+            "--tile", "300", "--size", "32"]
+    assert main(args) == 0
+    assert json.loads((out / "manifest.json").read_text())["tiles"] > 0
+    assert main(args) == 2
+    assert "already exists; use --force" in capsys.readouterr().err
+    assert main(["data", "prepare", "--osm", str(tmp_path / "none.osm"), "--out",
+                 str(tmp_path / "x")]) == 2
+    assert "not found" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
