@@ -13,7 +13,6 @@ import networkx as nx
 import numpy as np
 import pytest
 
-
 from roadweaver_sumo import metrics
 from roadweaver_sumo.data.condition import (
     CONDITION_NAMES,
