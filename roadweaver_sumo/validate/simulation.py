@@ -94,10 +94,12 @@ def _simulate(
     import libsumo
 
     stats, collisions = Path(tmp) / "statistics.xml", Path(tmp) / "collisions.xml"
+    edgedata = Path(tmp) / "edgedata.xml"
     t0 = time.perf_counter()
     try:
         libsumo.start(["sumo", "-c", cfg, "--statistic-output", str(stats),
                        "--collision-output", str(collisions),
+                       "--edgedata-output", str(edgedata),
                        "--duration-log.statistics", "true", "--no-step-log", "true",
                        "--routing-algorithm", "astar"])  # fmt: skip
     except libsumo.TraCIException as exc:
@@ -113,7 +115,8 @@ def _simulate(
     finally:
         libsumo.close()
     results = {"completed": completed, "sim_end_s": sim_end, **_read_statistics(stats)}
-    results.update(routing, collision_sites=_collision_sites(collisions))
+    results.update(routing, collision_sites=_collision_sites(collisions),
+                   edge_flows=_edge_flows(edgedata))
     timing = {
         "load_s": t1 - t0,
         "simulation_wall_s": t2 - t1,
@@ -194,6 +197,20 @@ def _collision_sites(path: Path, most: int = MAX_COLLISION_SITES) -> list:
     so the order survives JSON with sorted keys); points a failed check at the geometry to fix."""
     counts = Counter(_site(c.get("lane", "")) for c in etree.parse(str(path)).iter("collision"))
     return [[site, n] for site, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))[:most]]
+
+
+def _edge_flows(path: Path) -> dict[str, int]:
+    """Vehicles that used each normal edge during the run (departed on it or entered it), from
+    SUMO's ``--edgedata-output``; edges nobody used are left out to keep ``report.json`` short.
+    The preview draws them as a heat overlay."""
+    flows: Counter = Counter()
+    if path.exists():
+        for edge in etree.parse(str(path)).iter("edge"):
+            edge_id = edge.get("id", "")
+            if not edge_id.startswith(":"):
+                used = float(edge.get("departed", 0)) + float(edge.get("entered", 0))
+                flows[edge_id] += int(used)
+    return {edge: n for edge, n in sorted(flows.items()) if n > 0}
 
 
 def _site(lane: str) -> str:
