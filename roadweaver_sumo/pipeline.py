@@ -21,6 +21,7 @@ from .export.opendrive import write_opendrive
 from .export.sumo_plain import write_plain
 from .hdmap import build_hdmap, hdmap_metrics
 from .metrics import graph_metrics
+from .render import render_preview
 from .scenario.demand import write_demand
 from .scenario.sumocfg import write_sumocfg
 from .skeleton import make_skeleton
@@ -70,6 +71,9 @@ def make_scenario(
         else:
             write_report(tmp, {"generation": generation, "validated": False})
             timing = {"stages_s": stages}
+        start = time.perf_counter()
+        render_preview(tmp)  # after the report: the picture shows the validation's edge flows
+        stages["preview"] = time.perf_counter() - start
         (tmp / TIMING_FILE).write_text(_json(_rounded_timing(timing)), encoding="utf-8")
     if report is not None:
         report = json.loads((out_dir / "report.json").read_text(encoding="utf-8"))
