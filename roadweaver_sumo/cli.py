@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 
 from . import __version__
@@ -59,7 +60,39 @@ def build_parser() -> argparse.ArgumentParser:
     val = sub.add_parser("validate", help="re-run the validation of a scenario folder")
     val.add_argument("dir", type=Path)
     val.add_argument("--json", action="store_true", help="print the report as JSON")
+    _add_suite_commands(sub, make)
     return parser
+
+
+def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:
+    """``make-suite``, ``check-suite`` and ``render`` (scenario suites and previews)."""
+    suite = sub.add_parser("make-suite", help="build a grid of scenarios with a manifest")
+    suite.add_argument("--densities", required=True, help="road nodes per km², e.g. 10,20,30")
+    suite.add_argument("--styles", default="mixed", help=f"comma-separated: {', '.join(STYLES)}")
+    suite.add_argument("--seeds", default="0", help="seeds and ranges, e.g. 0-9 or 0,3,7")
+    suite.add_argument("--size", default="2000", help="map size in metres: 2000 or 3000x2000")
+    suite.add_argument("--vehicles", type=int, default=500, help="vehicles per scenario")
+    suite.add_argument("--duration", type=float, default=3600.0, help="demand horizon, seconds")
+    suite.add_argument("--skeleton", default=make.get_default("skeleton"),
+                       help=f"one of {', '.join(SKELETONS)}")  # same default as make-scenario
+    suite.add_argument("--out", type=Path, required=True, help="suite folder")
+    suite.add_argument("--force", action="store_true", help="replace an existing suite folder")
+    suite.add_argument("--engine", default="local", help="local (process pool) or ray")
+    suite.add_argument("--address", help="Ray cluster address (with --engine ray)")
+    suite.add_argument("--workers", type=int, help="parallel scenarios (default: CPU count)")
+    suite.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    suite.add_argument("--json", action="store_true", help="print the summary as JSON")
+
+    check = sub.add_parser("check-suite", help="check a suite against its manifest")
+    check.add_argument("dir", type=Path)
+    check.add_argument("--no-regenerate", action="store_true",
+                       help="only re-validate; do not rebuild every scenario to compare hashes")
+    check.add_argument("--workers", type=int, help="parallel scenarios (default: CPU count)")
+    check.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    check.add_argument("--json", action="store_true", help="print the result as JSON")
+
+    render = sub.add_parser("render", help="redraw preview.png of scenario folders")
+    render.add_argument("dirs", type=Path, nargs="+", metavar="DIR")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -69,6 +102,9 @@ def main(argv: list[str] | None = None) -> int:
             return _make_scenario(args)
         if args.command == "data":
             return _data_prepare(args)
+        if args.command in ("make-suite", "check-suite", "render"):
+            return {"make-suite": _make_suite, "check-suite": _check_suite,
+                    "render": _render}[args.command](args)  # fmt: skip
         return _validate(args)
     except RoadweaverError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
@@ -148,6 +184,73 @@ def _finish(folder: Path, report: dict | None, as_json: bool, verb: str) -> int:
         print(f"{PROG}: error: scenario fails {len(failures)} check(s): " + "; ".join(failures),
               file=sys.stderr)
         return EXIT_FAILED_CHECKS
+    return 0
+
+
+def _make_suite(args) -> int:
+    from .suite import MANIFEST_FILE, Progress, SuiteSpec, make_suite
+    from .suite.grid import parse_densities, parse_seeds, parse_styles
+
+    width, height = parse_size(args.size)
+    suite = SuiteSpec(densities=parse_densities(args.densities), styles=parse_styles(args.styles),
+                      seeds=parse_seeds(args.seeds), width=width, height=height,
+                      vehicles=args.vehicles, duration=args.duration, skeleton=args.skeleton)  # fmt: skip
+    total = len(suite.scenarios())
+    progress = Progress(total, enabled=not (args.quiet or args.json))
+    start = time.monotonic()
+    result = make_suite(suite, args.out, force=args.force, engine=args.engine,
+                        workers=args.workers, address=args.address, progress=progress)  # fmt: skip
+    wall, failed = time.monotonic() - start, result.failed
+    if args.json:
+        print(json.dumps({"out": str(args.out), "manifest": str(args.out / MANIFEST_FILE),
+                          "scenarios": total, "passed": total - len(failed), "failed": failed,
+                          "wall_s": round(wall, 1)}, indent=2, sort_keys=True))  # fmt: skip
+    else:
+        print(f"wrote {args.out}: {total - len(failed)} of {total} scenarios pass "
+              f"({wall:.0f} s); manifest {args.out / MANIFEST_FILE}")  # fmt: skip
+    if failed:
+        name, reasons = next(iter(failed.items()))
+        print(f"{PROG}: error: {len(failed)} of {total} scenarios fail, first {name}: "
+              f"{reasons[0] if reasons else 'failed'}", file=sys.stderr)  # fmt: skip
+        return EXIT_FAILED_CHECKS
+    return 0
+
+
+def _check_suite(args) -> int:
+    from .suite import Progress, check_suite, environment_note, read_manifest
+
+    _, manifest = read_manifest(args.dir)  # a broken manifest fails before any work
+    progress = Progress(len(manifest["scenarios"]), enabled=not (args.quiet or args.json))
+    problems = check_suite(args.dir, regenerate=not args.no_regenerate, workers=args.workers,
+                           progress=progress)  # fmt: skip
+    drifted = {name: found for name, found in problems.items() if found}
+    note = environment_note(args.dir) if drifted else None
+    checked = len(manifest["scenarios"])
+    if args.json:
+        print(json.dumps({"suite": str(args.dir), "checked": checked, "passed": not drifted,
+                          "regenerated": not args.no_regenerate, "drift": drifted,
+                          "note": note}, indent=2, sort_keys=True))  # fmt: skip
+    else:
+        for name, found in drifted.items():
+            for problem in found:
+                print(f"{name}: {problem}")
+        verdict = f"{len(drifted)} drifted" if drifted else "all match the manifest"
+        print(f"checked {checked} scenarios of {args.dir}: {verdict}")
+        if note:
+            print(f"  note: {note}")
+    if drifted:
+        name, found = next(iter(drifted.items()))
+        print(f"{PROG}: error: {args.dir} drifted from its manifest, first {name}: {found[0]}",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_FAILED_CHECKS
+    return 0
+
+
+def _render(args) -> int:
+    from .render import render_preview
+
+    for folder in args.dirs:
+        print(f"wrote {render_preview(folder)}")
     return 0
 
 

@@ -1,0 +1,132 @@
+"""``check-suite``: does a suite still match its manifest?
+
+Per scenario, three looks, each naming what drifted:
+1. the files on disk against the manifest's sha256 (missing, changed, unexpected files);
+2. a fresh validation of the folder on disk against the manifest's key figures;
+3. unless ``regenerate=False``, a rebuild from the spec into a temporary folder whose file hashes
+   must equal the manifest's (the generator itself has not drifted).
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+from pathlib import Path
+
+from ..errors import RoadweaverError
+from .engines import check_workers, run_jobs
+from .manifest import environment, file_hashes, key_figures, read_manifest, spec_from_entry
+from .progress import Progress
+
+
+def check_suite(
+    folder: Path,
+    *,
+    regenerate: bool = True,
+    workers: int | None = None,
+    progress: Progress | None = None,
+) -> dict[str, list[str]]:
+    """Problems per scenario name (an empty list when the scenario matches its manifest entry).
+
+    Problems that concern the suite folder itself are listed under the name ``"(suite)"``.
+    """
+    folder = Path(folder)
+    check_workers(workers)
+    _, manifest = read_manifest(folder)
+    entries = manifest["scenarios"]
+    problems: dict[str, list[str]] = {"(suite)": _suite_problems(folder, entries)}
+    progress = progress or Progress(len(entries), enabled=False)
+
+    def on_result(result: tuple[str, list[str]]) -> None:
+        name, found = result
+        problems[name] = found
+        progress.done(name, "ok" if not found else "DRIFTED")
+
+    what = "re-validating and regenerating" if regenerate else "re-validating"
+    progress.say(f"{what} {len(entries)} scenarios of {folder}")
+    jobs = [(str(folder / name), entry, regenerate) for name, entry in sorted(entries.items())]
+    run_jobs(check_job, jobs, on_result, workers=workers)
+    return dict(sorted(problems.items()))
+
+
+def environment_note(folder: Path) -> str | None:
+    """A line naming the packages whose versions differ from those the suite was made with."""
+    try:
+        _, manifest = read_manifest(folder)
+    except RoadweaverError:
+        return None
+    made, here = manifest.get("environment", {}), environment()
+    changed = [f"{k} {made[k]} -> {here.get(k, 'not installed')}"
+               for k in sorted(made) if made[k] != here.get(k, "not installed")]  # fmt: skip
+    return f"made with other versions: {', '.join(changed)}" if changed else None
+
+
+def check_job(job: tuple[str, dict, bool]) -> tuple[str, list[str]]:
+    """Worker: the problems of one scenario folder against its manifest entry."""
+    path, entry, regenerate = job
+    folder = Path(path)
+    name = folder.name
+    if "error" in entry:
+        return name, [f"its generation failed when the suite was made: {entry['error']}"]
+    if not folder.is_dir():
+        return name, ["scenario folder is missing"]
+    try:
+        problems = _compare_files("file", file_hashes(folder), entry["files"])
+        problems += _revalidate(folder, entry["figures"])
+        if regenerate:
+            problems += _regenerate(entry)
+    except OSError as exc:
+        problems = [f"cannot read the scenario: {exc.strerror or exc}"]
+    return name, problems
+
+
+def _suite_problems(folder: Path, entries: dict) -> list[str]:
+    extra = sorted(p.name for p in folder.iterdir()
+                   if p.is_dir() and not p.name.startswith(".") and p.name not in entries)  # fmt: skip
+    return [f"folder {name} is not in the manifest" for name in extra]
+
+
+def _compare_files(what: str, actual: dict[str, str], expected: dict[str, str]) -> list[str]:
+    problems = []
+    for rel in sorted(set(actual) | set(expected)):
+        if rel not in actual:
+            problems.append(f"{what} {rel} is missing")
+        elif rel not in expected:
+            problems.append(f"{what} {rel} is not in the manifest")
+        elif actual[rel] != expected[rel]:
+            problems.append(f"{what} {rel} differs from the manifest (sha256 "
+                            f"{actual[rel][:12]}..., manifest {expected[rel][:12]}...)")  # fmt: skip
+    return problems
+
+
+def _revalidate(folder: Path, figures: dict) -> list[str]:
+    """Validate the folder on disk again (read-only: SUMO writes into a temporary folder)."""
+    from ..validate.report import _with_verdict, validate_scenario
+
+    try:
+        report, _ = validate_scenario(folder)
+    except RoadweaverError as exc:
+        return [f"re-validation failed: {exc}"]
+    now = key_figures(_with_verdict(report))  # rounded as report.json is
+    return [
+        f"figure {name} is {_fmt(now.get(name))}, manifest {_fmt(value)}"
+        for name, value in sorted(figures.items())
+        if now.get(name) != value
+    ]
+
+
+def _regenerate(entry: dict) -> list[str]:
+    from ..pipeline import make_scenario
+
+    spec = spec_from_entry(entry, "manifest")
+    with tempfile.TemporaryDirectory(prefix="roadweaver-check-") as tmp:
+        out = Path(tmp) / spec.name
+        try:
+            make_scenario(spec, out, validate=True)
+        except RoadweaverError as exc:
+            return [f"regeneration failed: {exc}"]
+        return _compare_files("regenerated", file_hashes(out), entry["files"])
+
+
+def _fmt(value) -> str:
+    return json.dumps(value)

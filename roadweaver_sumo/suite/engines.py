@@ -1,0 +1,120 @@
+"""Where the scenarios of a suite are built: a local process pool, or a Ray cluster.
+
+Both run the same module-level job function on picklable jobs and hand each result to
+``on_result`` as it arrives; the caller sorts everything into place, so the order in which jobs
+finish never shows in the outputs.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+
+from ..errors import RoadweaverError
+
+ENGINES = ("local", "ray")
+MAX_WORKERS = 256
+RAY_HINT = "install it with: pip install 'roadweaver-sumo[ray]'"
+
+
+def default_workers() -> int:
+    return os.cpu_count() or 1
+
+
+def check_workers(workers: int | None) -> int:
+    workers = default_workers() if workers is None else workers
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= MAX_WORKERS:
+        raise RoadweaverError(f"--workers must be 1..{MAX_WORKERS}, got {workers!r}")
+    return workers
+
+
+def check_engine(engine: str, workers: int | None, address: str | None) -> None:
+    """Fail early, before any work, on an unknown engine, bad worker count or missing Ray."""
+    if engine not in ENGINES:
+        raise RoadweaverError(f"unknown engine {engine!r}; choose one of {', '.join(ENGINES)}")
+    if address is not None and engine != "ray":
+        raise RoadweaverError("--address needs --engine ray")
+    if engine == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise RoadweaverError(f"--engine ray needs Ray; {RAY_HINT}") from None
+    if engine == "local" or address is None:
+        check_workers(workers)
+
+
+def run_jobs(
+    fn: Callable,
+    jobs: Sequence,
+    on_result: Callable,
+    *,
+    engine: str = "local",
+    workers: int | None = None,
+    address: str | None = None,
+) -> None:
+    """Run ``fn(job)`` for every job on ``engine`` and call ``on_result`` with each return value."""
+    check_engine(engine, workers, address)
+    if engine == "ray":
+        _run_ray(fn, jobs, on_result, workers, address)
+    else:
+        _run_local(fn, jobs, on_result, check_workers(workers))
+
+
+def _run_local(fn: Callable, jobs: Sequence, on_result: Callable, workers: int) -> None:
+    """A process pool; 'spawn' so workers start clean whatever threads the caller runs (a forked
+    copy of a process with threads can deadlock)."""
+    context = multiprocessing.get_context("spawn")
+    pool = ProcessPoolExecutor(max_workers=min(workers, max(len(jobs), 1)), mp_context=context)
+    try:
+        pending = {pool.submit(fn, job) for job in jobs}
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in sorted(done, key=id):
+                on_result(future.result())
+    except BrokenProcessPool:
+        raise RoadweaverError("a worker process died (out of memory?)") from None
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _run_ray(fn: Callable, jobs: Sequence, on_result: Callable, workers, address) -> None:
+    """Ray tasks of one CPU each. Joins a running Ray (``ray.init`` already called, or
+    ``address``) or starts a local one with ``workers`` CPUs, shut down again afterwards."""
+    try:
+        import ray
+    except ImportError:
+        raise RoadweaverError(f"--engine ray needs Ray; {RAY_HINT}") from None
+    started_here = not ray.is_initialized()
+    if started_here:
+        options = {"include_dashboard": False, "log_to_driver": False,
+                   "logging_level": logging.ERROR}  # fmt: skip
+        if address is None:
+            options["num_cpus"] = check_workers(workers)
+        try:
+            ray.init(address=address, **options)
+        except Exception as exc:  # noqa: BLE001 - ray raises ConnectionError, RuntimeError...
+            where = f"at {address}" if address else "locally"
+            raise RoadweaverError(f"cannot start Ray {where}: {_one_line(exc)}") from None
+    try:
+        task = ray.remote(num_cpus=1)(fn)
+        pending = [task.remote(job) for job in jobs]
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            for ref in done:
+                try:
+                    result = ray.get(ref)
+                except ray.exceptions.RayError as exc:
+                    raise RoadweaverError(f"a Ray task failed: {_one_line(exc)}") from None
+                on_result(result)
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+def _one_line(exc: Exception) -> str:
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+    return lines[-1] if lines else type(exc).__name__

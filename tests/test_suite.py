@@ -1,0 +1,81 @@
+"""make-suite / check-suite end to end on a tiny suite (2 scenarios of 500 m), local and on Ray."""
+
+import json
+import re
+import shutil
+
+import pytest
+
+from roadweaver_sumo.cli import main
+from roadweaver_sumo.suite import MANIFEST_FILE
+
+SUITE_ARGS = ["make-suite", "--densities", "20,30", "--styles", "grid", "--seeds", "0",
+              "--size", "500", "--vehicles", "15", "--duration", "60", "--skeleton", "procedural"]
+NAMES = ["grid-d20-500x500-s0-v15", "grid-d30-500x500-s0-v15"]
+
+
+@pytest.fixture(scope="module")
+def suite(tmp_path_factory):
+    out = tmp_path_factory.mktemp("suite") / "local"
+    assert main([*SUITE_ARGS, "--workers", "2", "--quiet", "--out", str(out)]) == 0
+    return out
+
+
+def test_suite_folder_has_a_scenario_each_and_a_manifest(suite):
+    assert sorted(p.name for p in suite.iterdir()) == sorted([*NAMES, MANIFEST_FILE])
+    manifest = json.loads((suite / MANIFEST_FILE).read_text())
+    assert sorted(manifest["scenarios"]) == NAMES
+    for name, entry in manifest["scenarios"].items():
+        assert entry["passed"] and entry["spec"]["style"] == "grid"
+        assert "timing.json" not in entry["files"] and "preview.png" in entry["files"]
+        assert entry["files"].keys() == {
+            p.relative_to(suite / name).as_posix()
+            for p in (suite / name).rglob("*") if p.is_file() and p.name != "timing.json"}
+        assert entry["figures"]["simulation.loaded"] == 15
+    assert manifest["suite"]["densities"] == [20.0, 30.0]
+
+
+def test_existing_suite_is_kept_without_force(suite, capsys):
+    before = (suite / MANIFEST_FILE).read_bytes()
+    assert main([*SUITE_ARGS, "--quiet", "--out", str(suite)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("roadweaver-sumo: error:") and "--force" in err and "\n" not in err
+    assert (suite / MANIFEST_FILE).read_bytes() == before
+    assert not [p for p in suite.parent.iterdir() if ".partial-" in p.name]
+
+
+def test_ray_engine_writes_the_same_manifest(suite, tmp_path, capsys):
+    ray = pytest.importorskip("ray")
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        out = tmp_path / "ray"
+        assert main([*SUITE_ARGS, "--engine", "ray", "--out", str(out)]) == 0
+    finally:
+        ray.shutdown()
+    assert (out / MANIFEST_FILE).read_bytes() == (suite / MANIFEST_FILE).read_bytes()
+    err = capsys.readouterr().err
+    assert "2/2" in err and "ETA" in err  # progress lines on stderr
+
+
+def test_check_suite_passes_on_an_untouched_suite(suite, capsys):
+    # --no-regenerate keeps this quick; tests/test_suite_example.py regenerates a whole suite
+    assert main(["check-suite", str(suite), "--no-regenerate", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["passed"] and result["checked"] == 2 and result["drift"] == {}
+
+
+def test_check_suite_names_the_scenario_file_and_figure_that_drifted(suite, tmp_path, capsys):
+    copy = tmp_path / "edited"
+    shutil.copytree(suite, copy)
+    demand = copy / NAMES[1] / "demand.rou.xml"
+    first_vehicle = re.compile(r'<vehicle id="veh0".*?</vehicle>\s*', flags=re.DOTALL)
+    demand.write_text(first_vehicle.sub("", demand.read_text(), count=1))
+    (copy / NAMES[0] / "map.xodr").unlink()
+    (copy / NAMES[0] / "notes.txt").write_text("mine")
+    assert main(["check-suite", str(copy), "--no-regenerate", "--quiet"]) == 1
+    out, err = capsys.readouterr()
+    assert f"{NAMES[1]}: file demand.rou.xml differs from the manifest" in out
+    assert f"{NAMES[1]}: figure simulation.loaded is 14, manifest 15" in out
+    assert f"{NAMES[0]}: file map.xodr is missing" in out
+    assert f"{NAMES[0]}: file notes.txt is not in the manifest" in out
+    assert err.startswith("roadweaver-sumo: error:") and err.count("\n") == 1
