@@ -1,0 +1,64 @@
+"""preview.png: deterministic bytes, no metadata, collision sites, and clear errors."""
+
+import json
+import shutil
+import struct
+from pathlib import Path
+
+import numpy as np
+from matplotlib.image import imread
+
+from roadweaver_sumo.cli import main
+from roadweaver_sumo.render import COLLISION_COLOUR, render_preview
+
+SUITE = Path(__file__).resolve().parents[1] / "scenarios" / "examples" / "suite"
+SCENARIO = SUITE / "grid-d20-1000x1000-s0-v50"
+
+
+def _chunks(png: Path) -> list[bytes]:
+    data, i, names = png.read_bytes(), 8, []
+    while i < len(data):
+        (length,) = struct.unpack(">I", data[i:i + 4])
+        names.append(data[i + 4:i + 8])
+        i += 12 + length
+    return names
+
+
+def test_preview_is_redrawn_byte_for_byte(tmp_path, capsys):
+    copy = tmp_path / SCENARIO.name
+    shutil.copytree(SCENARIO, copy)
+    assert main(["render", str(copy)]) == 0
+    assert capsys.readouterr().out.strip() == f"wrote {copy / 'preview.png'}"
+    assert (copy / "preview.png").read_bytes() == (SCENARIO / "preview.png").read_bytes()
+
+
+def test_preview_has_no_date_or_software_metadata():
+    chunks = set(_chunks(SCENARIO / "preview.png"))
+    assert chunks.isdisjoint({b"tEXt", b"iTXt", b"zTXt", b"tIME"})
+
+
+def test_preview_marks_collision_sites(tmp_path):
+    copy = tmp_path / "s"
+    shutil.copytree(SCENARIO, copy)
+    report = json.loads((copy / "report.json").read_text())
+    report["simulation"]["collision_sites"] = [["junction n1", 2], ["lane nowhere_0", 1]]
+    (copy / "report.json").write_text(json.dumps(report))
+    image = imread(render_preview(copy, tmp_path / "p.png"))[..., :3]
+    green = np.array([int(COLLISION_COLOUR[i:i + 2], 16) / 255 for i in (1, 3, 5)])
+    assert (np.abs(image - green).max(axis=-1) < 0.05).sum() > 20
+
+
+def test_preview_of_an_unvalidated_scenario_shows_the_lanes(tmp_path):
+    copy = tmp_path / "s"
+    shutil.copytree(SCENARIO, copy)
+    (copy / "report.json").write_text('{"validated": false}')
+    out = render_preview(copy, tmp_path / "p.png")
+    assert out.stat().st_size > 10_000
+    assert out.read_bytes() != (SCENARIO / "preview.png").read_bytes()
+
+
+def test_render_of_a_damaged_net_is_a_one_line_error(tmp_path, capsys):
+    (tmp_path / "map.net.xml").write_text("<net><edge id=")
+    assert main(["render", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("roadweaver-sumo: error: cannot read") and err.count("\n") == 1
