@@ -264,3 +264,32 @@ def test_generated_lane_ends_point_the_driving_way():
         ahead = np.asarray(c.interpolate(min(5.0, c.length)).coords[0])
         assert end_tangent(lane.centre) @ (lane.centre[-1] - back) > 0, lane.id
         assert start_tangent(lane.centre) @ (ahead - lane.centre[0]) > 0, lane.id
+
+
+def test_inner_boundary_of_a_tight_turn_runs_forwards():
+    """A right turn whose curvature radius drops below half the lane width: offsetting by half
+    the width would fold the inner boundary back (lanelet2 then reverses the lanelet). The inner
+    boundary is pulled in and every step of it runs forwards; both ends stay at half width."""
+    from roadweaver_sumo.hdmap.geometry import (
+        bezier_controls,
+        bezier_sample,
+        boundary_offsets,
+        offset_along,
+    )
+
+    out = np.array([[np.cos(np.radians(-100.0)), np.sin(np.radians(-100.0))]])
+    corner = np.array([[5.0, 0.0]])  # a 100 degree right turn, 5 m in, 2.5 m out
+    ctrl = bezier_controls(np.zeros((1, 2)), np.array([[1.0, 0.0]]), corner + 2.5 * out, out)
+    pts, tangents, curvature = bezier_sample(ctrl)
+    half = np.full(curvature.shape, 1.75)
+    plain = np.diff(offset_along(pts, tangents, -half)[0], axis=0)
+    assert (np.einsum("ij,ij->i", plain[:-1], plain[1:]) < 0).any()  # would fold back
+    left_d, right_d = boundary_offsets(curvature, half)
+    assert np.array_equal(left_d, half)  # the outer side keeps its width
+    assert right_d[0, 0] == right_d[0, -1] == -1.75
+    right = offset_along(pts, tangents, right_d)[0]
+    steps = np.diff(right, axis=0)
+    along = tangents[0, :-1] + tangents[0, 1:]
+    assert (np.einsum("ij,ij->i", steps, along) > 0).all()  # forwards along the lane
+    assert (np.einsum("ij,ij->i", steps[:-1], steps[1:]) > 0).all()  # no turn of 90 degrees
+    assert LineString(right).is_simple

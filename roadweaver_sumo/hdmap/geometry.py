@@ -9,6 +9,8 @@ import numpy as np
 
 MAX_MITER = 4.0  # cap on the miter stretch at sharp vertices, so offsets never spike
 BEZIER_SAMPLES = 16
+INNER_REACH = 0.8  # an inner boundary stays within this share of the curvature radius
+INNER_RAMP = 4  # samples over which a narrowed inner boundary returns to the lane ends
 
 
 def dedupe(coords: np.ndarray, tol: float = 1e-6) -> np.ndarray:
@@ -129,7 +131,8 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def bezier_sample(ctrl: np.ndarray, n: int = BEZIER_SAMPLES):
-    """Points (m, n, 2), unit tangents (m, n, 2) and curvature (m, n) of cubic Beziers.
+    """Points (m, n, 2), unit tangents (m, n, 2) and signed curvature (m, n; positive turning
+    left) of cubic Beziers.
 
     The first and last points are the first and last control points exactly (alignment 0).
     """
@@ -138,7 +141,7 @@ def bezier_sample(ctrl: np.ndarray, n: int = BEZIER_SAMPLES):
     vel = np.einsum("nk,mkd->mnd", d1, ctrl)
     acc = np.einsum("nk,mkd->mnd", d2, ctrl)
     speed = np.maximum(np.linalg.norm(vel, axis=2), 1e-9)
-    curvature = np.abs(_cross(vel, acc)) / speed**3
+    curvature = _cross(vel, acc) / speed**3
     pts[:, 0], pts[:, -1] = ctrl[:, 0], ctrl[:, 3]
     return pts, vel / speed[..., None], curvature
 
@@ -147,3 +150,26 @@ def offset_along(pts: np.ndarray, tangents: np.ndarray, distances: np.ndarray) -
     """Points moved left by ``distances`` (broadcast against the points' leading axes) along
     the normals of the given unit tangents."""
     return pts + _left(tangents) * distances[..., None]
+
+
+def boundary_offsets(curvature: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Signed offsets (left positive) of the left and right boundaries of curved lanes, (m, n).
+
+    Half the width, except on the inside of a bend tighter than half the width: an offset
+    beyond the curvature radius folds back (lanelet2 then guesses the bound's direction wrong
+    and reverses the lanelet). There the inner boundary keeps within ``INNER_REACH`` of the
+    smallest radius on that side, a parallel curve, and the lane narrows; it ramps back to
+    half the width over ``INNER_RAMP`` samples at each end, where it meets the joined lanes.
+    """
+    n = curvature.shape[1]
+    ends = np.minimum(np.arange(n), np.arange(n)[::-1])  # samples to the nearer end
+    ramp = np.clip(1.0 - ends / INNER_RAMP, 0.0, 1.0)  # 1 at the end points, 0 inside
+    sides = []
+    for sign in (1.0, -1.0):
+        bend = np.clip(sign * curvature, 0.0, None)
+        reach = INNER_REACH / np.maximum(bend, 1e-9)
+        inner = np.minimum(half, reach.min(axis=1, keepdims=True))
+        side = np.minimum(inner + (half - inner) * ramp, reach)
+        side[:, [0, -1]] = half[:, [0, -1]]
+        sides.append(sign * side)
+    return sides[0], sides[1]

@@ -15,6 +15,7 @@ from .geometry import (
     arc_lengths,
     bezier_controls,
     bezier_sample,
+    boundary_offsets,
     end_tangent_rows,
     offset_along,
     start_tangent_rows,
@@ -109,8 +110,10 @@ def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]]) -> list[Lan
     all Beziers computed in one vectorised batch.
 
     A connector runs from the incoming lane's end to the outgoing lane's start, tangent to
-    both; its width blends linearly between theirs so its boundaries meet theirs too; its
-    speed is capped by its tightest curvature. Lane-graph links are set on the connector only
+    both; its width blends linearly between theirs so its boundaries meet theirs too, except
+    that the inner boundary of a bend tighter than half the width is pulled in so that it never
+    folds back (``geometry.boundary_offsets``); its speed is capped by its tightest curvature.
+    Lane-graph links are set on the connector only
     (the road lanes learn about it in ``topology.link_connector``).
     """
     if not plan:
@@ -127,8 +130,9 @@ def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]]) -> list[Lan
     w0 = np.array([a.end_width for a in ins])
     w1 = np.array([b.width for b in outs])
     half = (w0[:, None] + (w1 - w0)[:, None] * np.linspace(0.0, 1.0, pts.shape[1])) / 2.0
-    left, right = offset_along(pts, tangents, half), offset_along(pts, tangents, -half)
-    turn_speed = np.sqrt(LATERAL_ACCEL / np.maximum(curvature.max(axis=1), 1e-9))
+    left_d, right_d = boundary_offsets(curvature, half)
+    left, right = offset_along(pts, tangents, left_d), offset_along(pts, tangents, right_d)
+    turn_speed = np.sqrt(LATERAL_ACCEL / np.maximum(np.abs(curvature).max(axis=1), 1e-9))
     lanes = []
     for i, ((node, in_id, out_id, movement), a, b) in enumerate(zip(plan, ins, outs, strict=True)):
         junction = hd.junctions[node]
