@@ -5,14 +5,15 @@ Usage:
   python bench/check_lanelet2.py --densities 10,20,30,40,50,60 --seeds 0-4 --size 2000
 Options: --pairs 1000 (random lanelet pairs for lanelet2), --tactics2d-tasks 100 (searches on
 Tactics2D's own routing graph: its pure-Python Dijkstra takes up to seconds per task on 2 km
-maps), --router-tasks 20 (full ``Router.plan`` calls, which rebuild the routing graph every
-time), --tactics2d-python PATH (an interpreter with tactics2d installed; Tactics2D is GPL-3.0 and
+maps), --router-tasks 20 (``Router.plan`` calls through ``plan_routes``, on one routing graph),
+--router-rebuild-tasks 3 (plain ``Router.plan`` calls, which rebuild the graph every time),
+--tactics2d-python PATH (an interpreter with tactics2d installed; Tactics2D is GPL-3.0 and
 pins older numpy/shapely, so it usually lives in its own venv), --json PATH.
 
 Per map: lanelet2 load errors, bounds lanelet2 reversed, routing success and ms per route
 (``getRoute`` on random lanelet pairs); whether the file's lanelet2 topology equals the HD map's
 lane graph; Tactics2D load time, search success on its own routing graph, ``Router.plan``
-success (start and goal lanes matched) and ms per route.
+success (start and goal lanes matched) and ms per route, with and without the graph rebuild.
 """
 
 from __future__ import annotations
@@ -93,6 +94,7 @@ def run_tactics2d(osm: Path, origin, args) -> dict | None:
     worker_args = [str(osm), "--origin", repr(float(origin[0])), repr(float(origin[1])),
                    "--tactics2d-tasks", str(args.tactics2d_tasks),
                    "--router-tasks", str(args.router_tasks),
+                   "--router-rebuild-tasks", str(args.router_rebuild_tasks),
                    "--seed", str(args.seed)]
     if args.tactics2d_python:
         proc = subprocess.run([args.tactics2d_python, __file__, "--tactics2d-worker",
@@ -104,10 +106,12 @@ def run_tactics2d(osm: Path, origin, args) -> dict | None:
         import tactics2d  # noqa: F401
     except ImportError:
         return None
-    return tactics2d_figures(osm, origin, args.tactics2d_tasks, args.router_tasks, args.seed)
+    return tactics2d_figures(osm, origin, args.tactics2d_tasks, args.router_tasks,
+                             args.router_rebuild_tasks, args.seed)
 
 
-def tactics2d_figures(osm: Path, origin, tasks: int, router_tasks: int, seed: int) -> dict:
+def tactics2d_figures(osm: Path, origin, tasks: int, router_tasks: int, rebuild_tasks: int,
+                      seed: int) -> dict:
     """Load with :func:`load_tactics2d_map` (relations from the file's lanelet2 topology, which
     the main process checked against the HD map) and route random lane-to-lane tasks."""
     import logging
@@ -116,35 +120,45 @@ def tactics2d_figures(osm: Path, origin, tasks: int, router_tasks: int, seed: in
     from tactics2d.routing.algorithm_adapter import AlgorithmAdapter
     from tactics2d.routing.graph_builder import GraphBuilder
 
-    from roadweaver_sumo.integrations.tactics2d import load_tactics2d_map
+    from roadweaver_sumo.integrations.tactics2d import load_tactics2d_map, plan_routes
 
     logging.disable(logging.WARNING)  # one warning per oddity would flood the bench output
     start = time.perf_counter()
     map_ = load_tactics2d_map(osm, origin=origin)
     load_s = time.perf_counter() - start
     ids = sorted(map_.lanes)
-    pairs = random_pairs(len(ids), tasks, seed)
+    pairs = random_pairs(len(ids), max(tasks, router_tasks, rebuild_tasks), seed)
     start = time.perf_counter()
     graph = GraphBuilder().build(map_)
     graph_s = time.perf_counter() - start
     start = time.perf_counter()
     searched = sum(bool(AlgorithmAdapter.dijkstra(graph, graph.lane_id_to_index[ids[i]],
                                                   graph.lane_id_to_index[ids[j]])[0])
-                   for i, j in pairs)
-    search_ms = 1000 * (time.perf_counter() - start) / max(len(pairs), 1)
-    router, planned = Router(), 0
-    start = time.perf_counter()
-    for i, j in pairs[:router_tasks]:
-        route = router.plan(map_, lane_middle(map_.lanes[ids[i]]), lane_middle(map_.lanes[ids[j]]))
-        planned += bool(route.lane_ids) and (route.start_lane_id, route.goal_lane_id) == (ids[i],
-                                                                                        ids[j])
-    router_n = len(pairs[:router_tasks])
-    return {"lanes": len(ids), "load_s": load_s, "graph_s": graph_s,
-            "lanes_with_successors": sum(1 for lane in map_.lanes.values() if lane.successors),
-            "search_tasks": len(pairs), "search_success": searched / max(len(pairs), 1),
-            "search_ms": search_ms, "router_tasks": router_n,
-            "router_success": planned / max(router_n, 1),
-            "router_ms": 1000 * (time.perf_counter() - start) / max(router_n, 1)}
+                   for i, j in pairs[:tasks])
+    search_ms = 1000 * (time.perf_counter() - start) / max(len(pairs[:tasks]), 1)
+
+    def planned(routes, task_pairs) -> int:
+        return sum(bool(route.lane_ids) and (route.start_lane_id, route.goal_lane_id)
+                   == (ids[i], ids[j]) for route, (i, j) in zip(routes, task_pairs))
+
+    def tasks_for(task_pairs):
+        return [(lane_middle(map_.lanes[ids[i]]), lane_middle(map_.lanes[ids[j]]))
+                for i, j in task_pairs]
+
+    figures = {"lanes": len(ids), "load_s": load_s, "graph_s": graph_s,
+               "lanes_with_successors": sum(1 for lane in map_.lanes.values() if lane.successors),
+               "search_tasks": len(pairs[:tasks]),
+               "search_success": searched / max(len(pairs[:tasks]), 1), "search_ms": search_ms}
+    for key, n, plan in (("router", router_tasks, lambda t: plan_routes(map_, t, Router())),
+                         ("router_rebuild", rebuild_tasks,
+                          lambda t: [Router().plan(map_, a, b) for a, b in t])):
+        task_pairs = pairs[:n]
+        start = time.perf_counter()
+        routes = plan(tasks_for(task_pairs))
+        figures |= {f"{key}_tasks": len(task_pairs),
+                    f"{key}_success": planned(routes, task_pairs) / max(len(task_pairs), 1),
+                    f"{key}_ms": 1000 * (time.perf_counter() - start) / max(len(task_pairs), 1)}
+    return figures
 
 
 def lane_middle(lane) -> tuple[float, float]:
@@ -165,7 +179,8 @@ def format_row(r: dict) -> str:
     if t2 and "error" not in t2:
         text += (f" | t2d load={t2['load_s']:.1f}s search={t2['search_success']:.3f} "
                  f"{t2['search_ms']:.1f}ms router={t2['router_success']:.3f} "
-                 f"{t2['router_ms']:.0f}ms")
+                 f"{t2['router_ms']:.0f}ms (rebuilding the graph: "
+                 f"{t2['router_rebuild_ms']:.0f}ms)")
     elif t2:
         text += f" | t2d {t2['error']}"
     return text
@@ -195,7 +210,8 @@ def summary(rows: list[dict]) -> str:
             f"{statistics.mean(x['search_ms'] for x in t2):.1f}; Router.plan success min "
             f"{min(x['router_success'] for x in t2):.3f}, ms mean "
             f"{statistics.mean(x['router_ms'] for x in t2):.0f} max "
-            f"{max(x['router_ms'] for x in t2):.0f}")
+            f"{max(x['router_ms'] for x in t2):.0f} (rebuilding the graph per call: mean "
+            f"{statistics.mean(x['router_rebuild_ms'] for x in t2):.0f})")
     return "\n".join(lines)
 
 
@@ -209,6 +225,7 @@ def parse_args(argv=None):
     ap.add_argument("--pairs", type=int, default=1000)
     ap.add_argument("--tactics2d-tasks", type=int, default=100)
     ap.add_argument("--router-tasks", type=int, default=20)
+    ap.add_argument("--router-rebuild-tasks", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--tactics2d-python", default=None)
     ap.add_argument("--json", type=Path, default=Path("bench/results/check_lanelet2.json"))
@@ -221,7 +238,8 @@ def main(argv=None) -> None:
     args = parse_args(argv)
     if args.tactics2d_worker:  # child mode, run by --tactics2d-python
         print(json.dumps(tactics2d_figures(args.scenarios[0], tuple(args.origin),
-                                           args.tactics2d_tasks, args.router_tasks, args.seed)))
+                                           args.tactics2d_tasks, args.router_tasks,
+                                           args.router_rebuild_tasks, args.seed)))
         return
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
