@@ -61,6 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
     val.add_argument("dir", type=Path)
     val.add_argument("--json", action="store_true", help="print the report as JSON")
     _add_suite_commands(sub, make)
+    _add_train_commands(sub)
     return parser
 
 
@@ -100,6 +101,8 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         if args.command == "make-scenario":
             return _make_scenario(args)
+        if args.command == "train":
+            return _train(args)
         if args.command == "data":
             return _data_prepare(args)
         if args.command in ("make-suite", "check-suite", "render"):
@@ -251,6 +254,57 @@ def _render(args) -> int:
 
     for folder in args.dirs:
         print(f"wrote {render_preview(folder)}")
+    return 0
+
+
+def _add_train_commands(sub) -> None:
+    """``train vqvae`` and ``train maskgit`` (the learned skeleton, paper §III-B)."""
+    from .generative.settings import MASKGIT_SETTINGS, VQVAE_SETTINGS
+
+    train = sub.add_parser("train", help="train the learned skeleton's models")
+    kinds = train.add_subparsers(dest="model", required=True, parser_class=_Parser)
+    for name, defaults in (("vqvae", VQVAE_SETTINGS), ("maskgit", MASKGIT_SETTINGS)):
+        p = kinds.add_parser(name, help=f"train the {name} on a prepared dataset")
+        p.add_argument("--data", type=Path, required=True, help="folder from 'data prepare'")
+        if name == "maskgit":
+            p.add_argument("--vqvae", type=Path, required=True, help="trained VQ-VAE checkpoint")
+        p.add_argument("--out", type=Path, required=True, help="checkpoint file to write")
+        p.add_argument("--steps", type=int, default=defaults.steps)
+        p.add_argument("--batch", type=int, default=defaults.batch)
+        p.add_argument("--lr", type=float, default=defaults.lr)
+        p.add_argument("--seed", type=int, default=defaults.seed)
+        p.add_argument("--force", action="store_true", help="replace an existing checkpoint")
+        p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+
+
+def _train(args) -> int:
+    from dataclasses import replace
+
+    from .skeleton import torch_available
+
+    if not torch_available():
+        raise RoadweaverError("training needs torch: pip install 'roadweaver-sumo[learned]'")
+    from .generative import settings as defaults
+    from .generative import training
+
+    if args.out.exists() and not args.force:
+        raise RoadweaverError(f"{args.out} exists; pass --force to replace it")
+    if not (args.data / "manifest.json").is_file():
+        raise RoadweaverError(f"{args.data} is not a prepared dataset (no manifest.json)")
+    if args.steps < 1 or args.batch < 1 or not args.lr > 0 or args.seed < 0:
+        raise RoadweaverError("--steps and --batch must be >= 1, --lr > 0 and --seed >= 0")
+    base = defaults.VQVAE_SETTINGS if args.model == "vqvae" else defaults.MASKGIT_SETTINGS
+    settings = replace(base, steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed)
+    log = (lambda msg: None) if args.quiet else (lambda msg: print(f"  {msg}", file=sys.stderr))
+    if args.model == "vqvae":
+        meta = training.train_vqvae(args.data, args.out, settings, defaults.VQVAE_CONFIG, log=log)
+        print(f"wrote {args.out}: held-out road IoU {meta['heldout']['road_iou']:.3f}, "
+              f"{meta['seconds'] / 60:.1f} min")
+    else:
+        meta = training.train_maskgit(args.data, args.vqvae, args.out, settings,
+                                      defaults.MASKGIT_CONFIG, log=log)
+        print(f"wrote {args.out}: held-out loss {meta['history'][-1]['heldout_loss']:.3f}, "
+              f"{meta['seconds'] / 60:.1f} min")
     return 0
 
 

@@ -14,7 +14,7 @@ from . import __version__
 from .errors import RoadweaverError
 
 STYLES = ("grid", "radial", "organic", "mixed")
-SKELETONS = ("procedural",)
+SKELETONS = ("learned", "procedural")
 MAX_SIDE_M = 50_000.0
 MIN_SIDE_M = 200.0
 MAX_VEHICLES = 1_000_000

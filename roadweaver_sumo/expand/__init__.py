@@ -27,7 +27,8 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     """Growth -> A* reconnection -> largest component -> fill/prune to the target density."""
     field = skeleton_tensor_field(skeleton)
     collectors = grow_collectors(spec, skeleton, field, spec.rng(STAGE_GROWTH))
-    roads = [(c, "arterial") for c in skeleton.polylines] + [(c, "collector") for c in collectors]
+    roads = list(zip(skeleton.polylines, skeleton.road_classes()))
+    roads += [(c, "collector") for c in collectors]
     roads.append((skeleton.frame, "collector"))
     G = build_planar_graph(roads, spec.width, spec.height)
     stub = 0.5 * block_size(spec.density)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.ndimage import gaussian_filter
@@ -15,8 +15,9 @@ from ..tensor_field import TensorField
 class Skeleton:
     """Principal roads and the road field they come with.
 
-    ``polylines``: arterial centrelines in map metres. ``frame``: the perimeter road. ``basis``: the orientation field to fall
-    back on far from the skeleton. ``road_prob``: road probability per raster cell (the decoded
+    ``polylines``: principal centrelines in map metres, ``classes`` their road classes.
+    ``frame``: the perimeter road. ``basis``: the orientation field to fall back on far from
+    the skeleton. ``road_prob``: road probability per raster cell (the decoded
     road field F's first channel for the learned model), which becomes the A* cost map.
     """
 
@@ -25,6 +26,11 @@ class Skeleton:
     basis: TensorField
     road_prob: np.ndarray
     res: float
+    classes: list[str] = field(default_factory=list)
+
+    def road_classes(self) -> list[str]:
+        """Class per polyline; a generator that gives none makes every skeleton road arterial."""
+        return self.classes or ["arterial"] * len(self.polylines)
 
     def cost_map(self) -> np.ndarray:
         """Traversal cost per cell: cheap where the field predicts roads (paper §III-C, A*)."""

@@ -1,0 +1,133 @@
+"""MaskGIT-style masked transformer over the VQ-VAE token grid, conditioned on c by AdaLN.
+
+Every block modulates its two layer norms with a scale, a shift and a residual gate computed
+from the condition embedding (adaLN-Zero, Peebles & Xie 2023), so c reaches every layer rather
+than only the input. Training masks a cosine-scheduled share of positions; sampling starts from
+an all-masked grid (or one with some positions fixed, for in-painting) and, over a few steps,
+keeps the most confident predictions (Chang et al. 2022). With ``guidance`` > 0 the logits are
+pushed away from the unconditional prediction (classifier-free guidance), which sharpens what
+the condition asks for.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from .settings import MASKGIT_CONFIG, MaskGITConfig
+
+N_CONDITION = 11
+
+
+def cosine_mask_ratio(r: torch.Tensor) -> torch.Tensor:
+    """Share of masked positions at progress r in [0, 1): cos(π r / 2) (MaskGIT's schedule)."""
+    return torch.cos(0.5 * math.pi * r)
+
+
+class AdaLNBlock(nn.Module):
+    def __init__(self, cfg: MaskGITConfig):
+        super().__init__()
+        d = cfg.dim
+        self.norm1 = nn.LayerNorm(d, elementwise_affine=False)
+        self.attn = nn.MultiheadAttention(d, cfg.heads, dropout=cfg.dropout, batch_first=True)
+        self.norm2 = nn.LayerNorm(d, elementwise_affine=False)
+        self.mlp = nn.Sequential(nn.Linear(d, 4 * d), nn.GELU(), nn.Dropout(cfg.dropout),
+                                 nn.Linear(4 * d, d))
+        self.modulation = nn.Linear(d, 6 * d)
+        nn.init.zeros_(self.modulation.weight)  # adaLN-Zero: each block starts as identity
+        nn.init.zeros_(self.modulation.bias)
+
+    def forward(self, x: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
+        s1, b1, g1, s2, b2, g2 = self.modulation(c).unsqueeze(1).chunk(6, dim=-1)
+        h = self.norm1(x) * (1 + s1) + b1
+        x = x + g1 * self.attn(h, h, h, need_weights=False)[0]
+        h = self.norm2(x) * (1 + s2) + b2
+        return x + g2 * self.mlp(h)
+
+
+class MaskGIT(nn.Module):
+    def __init__(self, cfg: MaskGITConfig = MASKGIT_CONFIG):
+        super().__init__()
+        self.cfg = cfg
+        d, G, K = cfg.dim, cfg.groups, cfg.codebook_size
+        self.token_embed = nn.ModuleList(nn.Embedding(K, d) for _ in range(G))
+        self.mask_embed = nn.Parameter(torch.zeros(d))
+        self.row_embed = nn.Parameter(torch.randn(cfg.grid, d) * 0.02)
+        self.col_embed = nn.Parameter(torch.randn(cfg.grid, d) * 0.02)
+        self.cond_mlp = nn.Sequential(nn.Linear(N_CONDITION, d), nn.SiLU(), nn.Linear(d, d))
+        self.null_cond = nn.Parameter(torch.zeros(d))
+        self.blocks = nn.ModuleList(AdaLNBlock(cfg) for _ in range(cfg.depth))
+        self.final_norm = nn.LayerNorm(d, elementwise_affine=False)
+        self.final_mod = nn.Linear(d, 2 * d)
+        nn.init.zeros_(self.final_mod.weight)
+        nn.init.zeros_(self.final_mod.bias)
+        self.head = nn.Linear(d, G * K)
+
+    def condition(self, cond: torch.Tensor, drop: torch.Tensor | None = None) -> torch.Tensor:
+        """Standardised c (B, 11) -> embedding (B, dim); dropped rows get the null embedding."""
+        e = self.cond_mlp(cond)
+        if drop is not None:
+            e = torch.where(drop[:, None], self.null_cond.expand_as(e), e)
+        return e
+
+    def forward(self, tokens: torch.Tensor, mask: torch.Tensor, cond: torch.Tensor,
+                drop: torch.Tensor | None = None) -> torch.Tensor:
+        """tokens (B, n, G) with n = grid², mask (B, n) True where hidden -> logits (B, n, G, K)."""
+        B, n, G = tokens.shape
+        x = sum(emb(tokens[..., gi]) for gi, emb in enumerate(self.token_embed))
+        x = torch.where(mask[..., None], self.mask_embed.expand_as(x), x)
+        pos = (self.row_embed[:, None, :] + self.col_embed[None, :, :]).reshape(-1, self.cfg.dim)
+        x = x + pos[:n]
+        c = self.condition(cond, drop)
+        for block in self.blocks:
+            x = block(x, c)
+        scale, shift = self.final_mod(c).unsqueeze(1).chunk(2, dim=-1)
+        x = self.final_norm(x) * (1 + scale) + shift
+        return self.head(x).reshape(B, n, G, self.cfg.codebook_size)
+
+    @torch.no_grad()
+    def sample(self, cond: torch.Tensor, generator: torch.Generator, *, steps: int = 8,
+               known: torch.Tensor | None = None, known_mask: torch.Tensor | None = None,
+               temperature: float = 1.0, guidance: float = 1.0) -> torch.Tensor:
+        """Iterative confidence-based decoding. ``cond`` (B, 11) standardised. ``known`` (B, n, G)
+        tokens fixed where ``known_mask`` (B, n) is True (in-painting context). Returns (B, n, G).
+
+        At step t the share cos(π t / 2T) of the still-unknown positions stays masked; the
+        positions whose sampled tokens have the highest log-probability (plus annealed Gumbel
+        noise, as in MaskGIT) are kept.
+        """
+        B = cond.shape[0]
+        n, G = self.cfg.grid ** 2, self.cfg.groups
+        tokens = torch.zeros(B, n, G, dtype=torch.long)
+        fixed = torch.zeros(B, n, dtype=torch.bool)
+        if known is not None:
+            tokens = torch.where(known_mask[..., None], known, tokens)
+            fixed = known_mask.clone()
+        unknown0 = (~fixed).sum(dim=1)  # positions to generate, per row
+        masked = ~fixed
+        drop_all = torch.ones(B, dtype=torch.bool)
+        for t in range(steps):
+            logits = self(tokens, masked, cond)
+            if guidance > 0:
+                uncond = self(tokens, masked, cond, drop_all)
+                logits = logits + guidance * (logits - uncond)
+            logp = F.log_softmax(logits / max(temperature, 1e-4), dim=-1)
+            gumbel = -torch.log(-torch.log(
+                torch.rand(logp.shape, generator=generator).clamp_(1e-9, 1 - 1e-9)))
+            choice = (logp + gumbel).argmax(-1)  # (B, n, G): a sample per group
+            conf = torch.gather(logp, -1, choice[..., None]).squeeze(-1).sum(-1)  # (B, n)
+            ratio = math.cos(0.5 * math.pi * (t + 1) / steps)
+            keep_masked = torch.floor(unknown0.float() * ratio).long()  # per row
+            anneal = 1.0 - (t + 1) / steps
+            noise = -torch.log(-torch.log(torch.rand(B, n, generator=generator).clamp_(1e-9, 1 - 1e-9)))
+            score = torch.where(masked, conf + 2.0 * anneal * noise, torch.full_like(conf, math.inf))
+            order = score.argsort(dim=1)  # lowest first
+            rank = order.argsort(dim=1)
+            still = rank < keep_masked[:, None]
+            newly = masked & ~still
+            tokens = torch.where(newly[..., None], choice, tokens)
+            masked = still & masked
+        return tokens

@@ -1,0 +1,115 @@
+"""Condition + map extent -> decoded road field F of any size, without seams.
+
+The token canvas covers the whole map. It is filled one window (the transformer's 16 x 16 tile)
+at a time in raster order, windows overlapping by half: the tokens a window shares with windows
+already sampled are kept fixed as context and only the rest is generated (MaskGIT in-painting),
+so every road that crosses a window border is continued by the next window. The finished canvas
+goes through the convolutional decoder in one pass, so the decoded field has no tile borders.
+"""
+
+from __future__ import annotations
+
+import math
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from .checkpoint import load_maskgit, load_vqvae
+from .maskgit import MaskGIT
+from .vqvae import VQVAE
+
+#: torch's results may depend on its thread count; sampling always uses the same one so that a
+#: seed gives the same map on every machine.
+SAMPLING_THREADS = 2
+STEPS = 8
+GUIDANCE = 1.0
+TEMPERATURE = 1.0
+
+
+@dataclass
+class Generator:
+    """The trained pair plus what sampling needs from the transformer's training record."""
+
+    vqvae: VQVAE
+    maskgit: MaskGIT
+    cond_mean: np.ndarray
+    cond_std: np.ndarray
+    tile_m: float  # metres covered by one window at scale 1 (the training tile)
+    meta: dict
+
+    @classmethod
+    def load(cls, vqvae_path=None, maskgit_path=None) -> Generator:
+        vq, _ = load_vqvae(vqvae_path) if vqvae_path else load_vqvae()
+        mg, meta = load_maskgit(maskgit_path) if maskgit_path else load_maskgit()
+        return cls(vq, mg, np.array(meta["condition_mean"], dtype=np.float32),
+                   np.array(meta["condition_std"], dtype=np.float32),
+                   float(meta["dataset"]["settings"]["tile_m"]), meta)
+
+    @property
+    def grid(self) -> int:
+        return self.maskgit.cfg.grid
+
+    def standardise(self, c: np.ndarray) -> torch.Tensor:
+        return torch.from_numpy(((np.asarray(c, np.float32) - self.cond_mean) / self.cond_std)
+                                .astype(np.float32))[None]
+
+
+@contextmanager
+def fixed_threads(n: int = SAMPLING_THREADS):
+    old = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(old)
+
+
+def window_starts(length: int, window: int) -> list[int]:
+    """Window origins along one axis: stride half a window, the last flush with the end."""
+    if length <= window:
+        return [0]
+    stride = window // 2
+    starts = list(range(0, length - window + 1, stride))
+    if starts[-1] != length - window:
+        starts.append(length - window)
+    return starts
+
+
+def sample_tokens(gen: Generator, c: np.ndarray, shape: tuple[int, int], seed: int, *,
+                  steps: int = STEPS, guidance: float = GUIDANCE,
+                  temperature: float = TEMPERATURE, progress=None) -> torch.Tensor:
+    """A token canvas (ny, nx, G) of at least one window, filled window by window."""
+    g, G = gen.grid, gen.maskgit.cfg.groups
+    ny, nx = max(shape[0], g), max(shape[1], g)
+    canvas = torch.zeros(ny, nx, G, dtype=torch.long)
+    done = torch.zeros(ny, nx, dtype=torch.bool)
+    cond = gen.standardise(c)
+    rng = torch.Generator().manual_seed(int(seed))
+    windows = [(y, x) for y in window_starts(ny, g) for x in window_starts(nx, g)]
+    for k, (y, x) in enumerate(windows):
+        known = canvas[y:y + g, x:x + g].reshape(1, g * g, G)
+        known_mask = done[y:y + g, x:x + g].reshape(1, g * g)
+        if known_mask.all():
+            continue
+        out = gen.maskgit.sample(cond, rng, steps=steps, known=known, known_mask=known_mask,
+                                 guidance=guidance, temperature=temperature)
+        canvas[y:y + g, x:x + g] = out.reshape(g, g, G)
+        done[y:y + g, x:x + g] = True
+        if progress:
+            progress(k + 1, len(windows))
+    return canvas
+
+
+def sample_field(gen: Generator, c: np.ndarray, width_m: float, height_m: float, seed: int, *,
+                 scale: float = 1.0, **options) -> tuple[np.ndarray, float]:
+    """Decoded F (rows north from y = 0, as ``data.field``) covering at least the map, and its
+    metres per pixel. ``scale`` stretches the model's tile over ``scale`` times the training
+    extent (sparser networks than the data have look like scaled-up denser ones)."""
+    token_m = gen.tile_m * scale / gen.grid
+    shape = (math.ceil(height_m / token_m), math.ceil(width_m / token_m))
+    with fixed_threads(), torch.no_grad():
+        tokens = sample_tokens(gen, c, shape, seed, **options)
+        field = gen.vqvae.decode(tokens[None])[0].permute(1, 2, 0).numpy()
+    return np.ascontiguousarray(field, dtype=np.float32), token_m / 8

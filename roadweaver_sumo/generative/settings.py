@@ -1,0 +1,52 @@
+"""Model shapes and training settings, free of torch so the command line can show them.
+
+The defaults are the settings of the shipped weights (``weights/MODEL_CARD.md``): sized so that
+both models train on 2 CPU cores in about an hour together.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+
+@dataclass(frozen=True)
+class VQVAEConfig:
+    width: int = 32  # channels at the first (64 x 64) level; doubled per level
+    codebook_size: int = 512
+    groups: int = 2
+    code_dim: int = 32
+    beta: float = 0.25  # commitment weight
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class MaskGITConfig:
+    dim: int = 192
+    depth: int = 6
+    heads: int = 6
+    codebook_size: int = 512
+    groups: int = 2
+    grid: int = 16
+    dropout: float = 0.1
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class TrainSettings:
+    steps: int
+    batch: int
+    lr: float
+    seed: int = 0
+    crop: int = 0  # VQ-VAE: train on random crops of this many pixels (0 = whole tiles)
+    threads: int = 2
+    eval_every: int = 500
+
+
+VQVAE_CONFIG = VQVAEConfig()
+MASKGIT_CONFIG = MaskGITConfig()
+VQVAE_SETTINGS = TrainSettings(steps=1200, batch=16, lr=1e-3, crop=64, eval_every=100)
+MASKGIT_SETTINGS = TrainSettings(steps=3000, batch=32, lr=1e-3, eval_every=250)

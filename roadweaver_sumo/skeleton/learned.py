@@ -1,0 +1,156 @@
+"""Learned skeleton (paper §III-B): sample a road field from the trained model, vectorise it.
+
+c is the style preset measured on real tiles (``data.condition.STYLE_PRESETS``) with the
+requested density. The transformer knows densities only as dense as its training tiles (about
+35 to 150 road nodes/km²); a sparser request samples a denser layout over a proportionally larger
+window (``scale`` > 1), so block shapes stay real while blocks grow. The decoded field's
+centrelines become the skeleton roads, its orientation channels the basis field and its road
+channel the A* cost map; the expansion then grows, reconnects and fills to the exact density.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import networkx as nx
+import numpy as np
+import shapely
+from scipy.ndimage import gaussian_filter, map_coordinates
+
+from ..data.condition import style_preset
+from ..data.field import field_to_graph
+from ..roadgraph import edge_coords, edge_length
+from ..spec import STAGE_SKELETON, ScenarioSpec
+from ..tensor_field import TensorField, field_grid
+from .model import Skeleton, perimeter
+from .procedural import FIELD_RES
+
+#: Densities (road nodes/km²) the training tiles cover well (5th..95th percentile of v1).
+MODEL_DENSITY = (35.0, 145.0)
+BASIS_SIGMA_M = 60.0
+#: Strokes (roads followed straight on through junctions) ranked by length: the longest ones
+#: making up this share of the road length are arterials, the next share collectors.
+ARTERIAL_SHARE, COLLECTOR_SHARE = 0.25, 0.25
+STROKE_MAX_DEFLECTION_DEG = 35.0
+STROKE_REACH_M = 40.0
+
+
+@lru_cache(maxsize=2)
+def shipped_generator():
+    from ..generative.sampling import Generator
+
+    return Generator.load()
+
+
+def condition_for(spec: ScenarioSpec) -> tuple[np.ndarray, float]:
+    """c for the spec and the window scale that makes the model's density the requested one."""
+    lo, hi = MODEL_DENSITY
+    model_density = float(np.clip(spec.density, lo, hi))
+    scale = math.sqrt(model_density / spec.density) if spec.density < lo else 1.0
+    return style_preset(spec.style, density=model_density), scale
+
+
+def learned_skeleton(spec: ScenarioSpec, generator=None) -> Skeleton:
+    from ..generative.sampling import sample_field
+
+    gen = generator or shipped_generator()
+    c, scale = condition_for(spec)
+    seed = int(spec.rng(STAGE_SKELETON).integers(2**31))
+    F, res = sample_field(gen, c, spec.width, spec.height, seed, scale=scale)
+    graph = field_to_graph(F, F.shape[1] * res)
+    lines, classes = _clipped_roads(graph, spec.width, spec.height)
+    return Skeleton(
+        polylines=lines,
+        frame=perimeter(spec.width, spec.height),
+        basis=_basis_field(F, res, spec.width, spec.height),
+        road_prob=_resample(F[..., 0], res, spec.width, spec.height),
+        res=FIELD_RES,
+        classes=classes,
+    )
+
+
+def _resample(channel: np.ndarray, res: float, width: float, height: float) -> np.ndarray:
+    """A field channel (pixels ``res`` m) bilinearly on the FIELD_RES grid of the map."""
+    X, Y = field_grid(width, height, FIELD_RES)
+    return map_coordinates(channel, [Y / res - 0.5, X / res - 0.5], order=1, mode="nearest")
+
+
+def _basis_field(F: np.ndarray, res: float, width: float, height: float) -> TensorField:
+    """The decoded orientation channels, smoothed, with anisotropy scaled into [0, 1]."""
+    c2 = _resample(gaussian_filter(F[..., 1], BASIS_SIGMA_M / res), res, width, height)
+    s2 = _resample(gaussian_filter(F[..., 2], BASIS_SIGMA_M / res), res, width, height)
+    mag = np.hypot(c2, s2)
+    full = max(float(np.quantile(mag, 0.9)), 1e-6)
+    gain = np.minimum(1.0 / full, 1.0 / np.maximum(mag, 1e-9))
+    return TensorField(c2 * gain, s2 * gain, FIELD_RES)
+
+
+def _clipped_roads(G: nx.Graph, width: float, height: float):
+    """Edge polylines inside the map, each with its road class from the stroke hierarchy."""
+    road_class = stroke_classes(G)
+    lines, classes = [], []
+    for u, v in sorted(G.edges):
+        clipped = shapely.clip_by_rect(shapely.LineString(edge_coords(G, u, v)),
+                                       0.0, 0.0, width, height)
+        for part in getattr(clipped, "geoms", [clipped]):
+            if part.geom_type == "LineString" and part.length > 1.0:
+                lines.append(np.asarray(part.coords))
+                classes.append(road_class[(u, v)])
+    return lines, classes
+
+
+def stroke_classes(G: nx.Graph) -> dict[tuple, str]:
+    """Road class per edge from "strokes": at each junction, the pairs of roads that continue
+    each other most straightly (deflection under 35°) are joined; long strokes are the main
+    roads (arterial), the next longest collectors, the rest local (natural road hierarchy,
+    Thomson 2006)."""
+    parent = {_key(*e): _key(*e) for e in G.edges}
+
+    def find(e):
+        while parent[e] != e:
+            parent[e] = parent[parent[e]]
+            e = parent[e]
+        return e
+
+    for n in sorted(G.nodes):
+        if G.degree(n) < 2:
+            continue
+        ends = []
+        for v in sorted(G.neighbors(n)):
+            coords = edge_coords(G, n, v)
+            d = np.cumsum(np.hypot(*np.diff(coords, axis=0).T))
+            k = min(int(np.searchsorted(d, STROKE_REACH_M)) + 1, len(coords) - 1)
+            vec = coords[k] - coords[0]
+            ends.append((math.atan2(vec[1], vec[0]), _key(n, v)))
+        pairs = []
+        for i in range(len(ends)):
+            for j in range(i + 1, len(ends)):
+                turn = abs((ends[i][0] - ends[j][0]) % (2 * math.pi) - math.pi)
+                pairs.append((math.degrees(turn), i, j))
+        used = set()
+        for deflection, i, j in sorted(pairs):
+            if deflection > STROKE_MAX_DEFLECTION_DEG or i in used or j in used:
+                continue
+            used.update((i, j))
+            parent[find(ends[i][1])] = find(ends[j][1])
+    length: dict = {}
+    for e in G.edges:
+        root = find(_key(*e))
+        length[root] = length.get(root, 0.0) + edge_length(G, *e)
+    total = sum(length.values()) or 1.0
+    ranked = sorted(length, key=lambda r: (-length[r], r))
+    cls, acc = {}, 0.0
+    for r in ranked:
+        share = acc / total
+        cls[r] = ("arterial" if share < ARTERIAL_SHARE
+                  else "collector" if share < ARTERIAL_SHARE + COLLECTOR_SHARE else "local")
+        acc += length[r]
+    out = {}
+    for u, v in G.edges:
+        out[(u, v)] = out[(v, u)] = cls[find(_key(u, v))]
+    return out
+
+
+def _key(u, v) -> tuple:
+    return (u, v) if u <= v else (v, u)

@@ -1,0 +1,226 @@
+"""The learned skeleton: training loops and checkpoints on a tiny dataset made here, sampling
+(in-painting, determinism), the shipped weights, the CLI, and the fallback without torch."""
+
+import math
+import warnings
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from roadweaver_sumo import cli
+from roadweaver_sumo.data.prepare import prepare_dataset
+from roadweaver_sumo.generative.checkpoint import (
+    SHIPPED_MASKGIT,
+    SHIPPED_VQVAE,
+    load_maskgit,
+    load_vqvae,
+    read_checkpoint,
+)
+from roadweaver_sumo.generative.maskgit import MaskGIT
+from roadweaver_sumo.generative.sampling import Generator, sample_field, window_starts
+from roadweaver_sumo.generative.settings import MaskGITConfig, TrainSettings, VQVAEConfig
+from roadweaver_sumo.generative.training import train_maskgit, train_vqvae
+from roadweaver_sumo.skeleton import TorchMissingWarning, make_skeleton, skeleton_generator
+from roadweaver_sumo.skeleton.learned import learned_skeleton, stroke_classes
+from roadweaver_sumo.spec import ScenarioSpec
+
+LAT0, LON0 = 48.0, 11.0
+M_PER_DEG = 6_371_008.8 * math.pi / 180
+TINY_VQ = VQVAEConfig(width=8, codebook_size=16, groups=2, code_dim=4)
+TINY_MG = MaskGITConfig(dim=32, depth=1, heads=2, dropout=0.0)
+
+
+def grid_town_osm(path: Path, n: int = 9, spacing: float = 100.0) -> Path:
+    """An n x n grid of residential streets with a curved primary road through it."""
+    def lonlat(x, y):
+        return LON0 + x / (M_PER_DEG * math.cos(math.radians(LAT0))), LAT0 + y / M_PER_DEG
+
+    xml = ['<?xml version="1.0"?>', '<osm version="0.6" generator="test">']
+    ids = {}
+    for i in range(n):
+        for j in range(n):
+            ids[i, j] = len(ids) + 1
+            lon, lat = lonlat(i * spacing, j * spacing)
+            xml.append(f'<node id="{ids[i, j]}" lat="{lat:.8f}" lon="{lon:.8f}" version="1"/>')
+    curve = []
+    for k in range(40):
+        x = k * spacing * (n - 1) / 39
+        y = 0.5 * spacing * (n - 1) + 120 * math.sin(x / 150)
+        curve.append(1000 + k)
+        lon, lat = lonlat(x, y)
+        xml.append(f'<node id="{1000 + k}" lat="{lat:.8f}" lon="{lon:.8f}" version="1"/>')
+    ways = [[ids[i, j] for j in range(n)] for i in range(n)]
+    ways += [[ids[i, j] for i in range(n)] for j in range(n)]
+    for w, nodes in enumerate(ways + [curve]):
+        kind = "primary" if nodes is curve else "residential"
+        refs = "".join(f'<nd ref="{r}"/>' for r in nodes)
+        xml.append(f'<way id="{w + 1}" version="1">{refs}<tag k="highway" v="{kind}"/></way>')
+    xml.append("</osm>")
+    path.write_text("\n".join(xml))
+    return path
+
+
+@pytest.fixture(scope="module")
+def tiny_dataset(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("data")
+    osm = grid_town_osm(root / "town.osm")
+    out = root / "tiles"
+    prepare_dataset([osm], out, tile_m=400.0, size=32, shifts=(0.0, 0.25, 0.5),
+                    min_coverage=0.3, log=lambda m: None)
+    return out
+
+
+@pytest.fixture(scope="module")
+def tiny_models(tiny_dataset, tmp_path_factory):
+    root = tmp_path_factory.mktemp("models")
+    vq_settings = TrainSettings(steps=6, batch=4, lr=1e-3, eval_every=3)
+    vq_meta = train_vqvae(tiny_dataset, root / "vq.pt", vq_settings, TINY_VQ, log=lambda m: None)
+    mg_settings = TrainSettings(steps=6, batch=4, lr=1e-3, eval_every=3)
+    mg_meta = train_maskgit(tiny_dataset, root / "vq.pt", root / "mg.pt", mg_settings, TINY_MG,
+                            log=lambda m: None)
+    return root, vq_meta, mg_meta
+
+
+def test_training_records_losses_and_metrics(tiny_models):
+    _, vq_meta, mg_meta = tiny_models
+    assert vq_meta["kind"] == "vqvae" and mg_meta["kind"] == "maskgit"
+    assert [h["step"] for h in vq_meta["history"]] == [3, 6]
+    for h in vq_meta["history"]:
+        assert all(np.isfinite(h[k]) for k in ("reconstruction", "codebook", "commitment"))
+        assert 0.0 <= h["road_iou"] <= 1.0
+    assert vq_meta["heldout_tiles"] > 0 and vq_meta["train_tiles"] > 0
+    assert all(np.isfinite(h["loss"]) and np.isfinite(h["heldout_loss"])
+               for h in mg_meta["history"])
+    assert "OpenStreetMap" in vq_meta["attribution"] and "ODbL" in mg_meta["attribution"]
+    assert mg_meta["config"]["grid"] == 4  # 32-pixel tiles, stride 8
+
+
+def test_training_is_reproducible_by_seed(tiny_dataset, tiny_models, tmp_path):
+    root, _, _ = tiny_models
+    settings = TrainSettings(steps=6, batch=4, lr=1e-3, eval_every=3)
+    train_vqvae(tiny_dataset, tmp_path / "again.pt", settings, TINY_VQ, log=lambda m: None)
+    a, _ = read_checkpoint(root / "vq.pt", "vqvae")
+    b, _ = read_checkpoint(tmp_path / "again.pt", "vqvae")
+    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    train_vqvae(tiny_dataset, tmp_path / "other.pt", replace(settings, seed=1), TINY_VQ,
+                log=lambda m: None)
+    c, _ = read_checkpoint(tmp_path / "other.pt", "vqvae")
+    assert not all(torch.equal(a[k], c[k]) for k in a)
+
+
+def test_checkpoint_round_trip_and_bad_files(tiny_models, tmp_path):
+    root, _, _ = tiny_models
+    vq, meta = load_vqvae(root / "vq.pt")
+    assert vq.cfg == TINY_VQ and meta["config"] == TINY_VQ.to_dict()
+    with pytest.raises(Exception, match="expected 'maskgit'"):
+        load_maskgit(root / "vq.pt")
+    junk = tmp_path / "junk.pt"
+    junk.write_bytes(b"not a checkpoint")
+    with pytest.raises(Exception, match="not a roadweaver-sumo checkpoint"):
+        load_vqvae(junk)
+    with pytest.raises(Exception, match="not found"):
+        load_vqvae(tmp_path / "missing.pt")
+
+
+def test_sampling_any_extent_is_deterministic(tiny_models):
+    root, _, _ = tiny_models
+    gen = Generator.load(root / "vq.pt", root / "mg.pt")
+    c = np.zeros(11, dtype=np.float32)
+    F1, res = sample_field(gen, c, 1000.0, 600.0, seed=3)
+    F2, _ = sample_field(gen, c, 1000.0, 600.0, seed=3)
+    F3, _ = sample_field(gen, c, 1000.0, 600.0, seed=4)
+    assert res == pytest.approx(400.0 / 32)
+    assert F1.shape[0] * res >= 600.0 and F1.shape[1] * res >= 1000.0
+    assert np.array_equal(F1, F2) and not np.array_equal(F1, F3)
+    assert F1[..., 0].min() >= 0 and F1[..., 0].max() <= 1
+    assert F1[..., 1:3].min() >= -1 and F1[..., 1:3].max() <= 1
+
+
+def test_inpainting_keeps_known_tokens():
+    torch.manual_seed(0)
+    model = MaskGIT(MaskGITConfig(dim=32, depth=1, heads=2, codebook_size=16, groups=2,
+                                  grid=4)).eval()
+    known = torch.randint(0, 16, (1, 16, 2))
+    known_mask = torch.zeros(1, 16, dtype=torch.bool)
+    known_mask[0, :8] = True
+    out = model.sample(torch.zeros(1, 11), torch.Generator().manual_seed(0), steps=4,
+                       known=known, known_mask=known_mask)
+    assert torch.equal(out[0, :8], known[0, :8])
+    assert out.min() >= 0 and out.max() < 16
+
+
+def test_window_starts_cover_the_canvas_with_half_overlap():
+    assert window_starts(16, 16) == [0]
+    assert window_starts(10, 16) == [0]
+    assert window_starts(40, 16) == [0, 8, 16, 24]
+    assert window_starts(30, 16) == [0, 8, 14]
+
+
+def test_stroke_classes_rank_long_straight_roads_first():
+    from roadweaver_sumo.roadgraph import add_road, new_road_graph
+
+    G = new_road_graph(1000, 1000)
+    # a straight 1 km avenue split by three junctions, and short side streets
+    for k in range(5):
+        G.add_node(k, xy=(250.0 * k, 500.0))
+    for k in range(4):
+        add_road(G, k, k + 1, np.array([G.nodes[k]["xy"], G.nodes[k + 1]["xy"]]), "arterial")
+    for k in (1, 2, 3):
+        G.add_node(10 + k, xy=(250.0 * k, 600.0))
+        add_road(G, k, 10 + k, np.array([G.nodes[k]["xy"], G.nodes[10 + k]["xy"]]), "arterial")
+    classes = stroke_classes(G)
+    assert all(classes[(k, k + 1)] == "arterial" for k in range(4))
+    assert all(classes[(k, 10 + k)] != "arterial" for k in (1, 2, 3))
+
+
+@pytest.mark.skipif(not SHIPPED_MASKGIT.is_file(), reason="weights not trained yet")
+def test_shipped_weights_give_a_learned_skeleton():
+    total = sum(p.stat().st_size for p in SHIPPED_VQVAE.parent.glob("*.pt"))
+    assert total <= 20 * 2**20
+    spec = ScenarioSpec(density=30, vehicles=10, width=2500, height=2000, skeleton="learned")
+    sk = learned_skeleton(spec)
+    again = learned_skeleton(spec)
+    assert len(sk.polylines) > 10 and len(sk.classes) == len(sk.polylines)
+    assert {"arterial", "collector", "local"} >= set(sk.classes)
+    pts = np.vstack(sk.polylines)
+    assert pts.min() >= -1e-6 and pts[:, 0].max() <= 2500 + 1e-6 and pts[:, 1].max() <= 2000
+    assert all(np.array_equal(a, b) for a, b in zip(sk.polylines, again.polylines))
+    assert sk.road_prob.shape == sk.basis.c2.shape == (200, 250)
+
+
+def test_learned_falls_back_to_procedural_without_torch(monkeypatch):
+    import roadweaver_sumo.skeleton as skeleton_pkg
+
+    monkeypatch.setattr(skeleton_pkg, "torch_available", lambda: False)
+    spec = ScenarioSpec(density=30, vehicles=10, width=1000, height=1000, skeleton="learned")
+    with pytest.warns(TorchMissingWarning, match="torch is not installed"):
+        assert skeleton_generator(spec) == "procedural"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TorchMissingWarning)
+        sk = make_skeleton(spec)
+    assert sk.classes == []  # the procedural generator's
+
+
+def test_train_cli_errors_are_one_line(tmp_path, capsys):
+    assert cli.main(["train", "vqvae", "--data", str(tmp_path), "--out",
+                     str(tmp_path / "m.pt")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "not a prepared dataset" in err
+    (tmp_path / "m.pt").write_bytes(b"x")
+    assert cli.main(["train", "maskgit", "--data", str(tmp_path), "--vqvae", "v.pt", "--out",
+                     str(tmp_path / "m.pt")]) == 2
+    assert "pass --force" in capsys.readouterr().err
+    assert cli.main(["train", "vqvae", "--data", str(tmp_path), "--out", str(tmp_path / "n.pt"),
+                     "--steps", "0"]) == 2
+    assert "error" in capsys.readouterr().err
+
+
+def test_train_cli_writes_a_checkpoint(tiny_dataset, tmp_path, capsys):
+    out = tmp_path / "vq.pt"
+    assert cli.main(["train", "vqvae", "--data", str(tiny_dataset), "--out", str(out),
+                     "--steps", "2", "--batch", "2", "--quiet"]) == 0
+    assert "held-out road IoU" in capsys.readouterr().out
+    assert load_vqvae(out)[1]["settings"]["steps"] == 2
