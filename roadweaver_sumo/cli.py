@@ -61,6 +61,10 @@ def build_parser() -> argparse.ArgumentParser:
     val.add_argument("dir", type=Path)
     val.add_argument("--json", action="store_true", help="print the report as JSON")
     _add_suite_commands(sub, make)
+    ev = sub.add_parser("evaluate", help="our metrics for any SUMO network")
+    ev.add_argument("net", type=Path, metavar="NET.net.xml")
+    ev.add_argument("--area-km2", type=float, help="map area (default: the net's convBoundary)")
+    ev.add_argument("--json", action="store_true", help="print the metrics as JSON")
     _add_train_commands(sub)
     return parser
 
@@ -101,6 +105,8 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         if args.command == "make-scenario":
             return _make_scenario(args)
+        if args.command == "evaluate":
+            return _evaluate(args)
         if args.command == "train":
             return _train(args)
         if args.command == "data":
@@ -150,6 +156,17 @@ def _data_prepare(args) -> int:
         manifest = prepare_dataset(args.osm, tmp, tile_m=args.tile, size=args.size,
                                    seed=args.seed, log=lambda msg: print(f"  {msg}", file=sys.stderr))
     print(f"wrote {args.out}: {manifest['tiles']} tiles")
+    return 0
+
+
+def _evaluate(args) -> int:
+    from .validate.evaluate import evaluate_net, summary_lines
+
+    result = evaluate_net(args.net, args.area_km2)
+    if args.json:
+        print(json.dumps(result, indent=2, sort_keys=True))
+    else:
+        print("\n".join(summary_lines(result)))
     return 0
 
 

@@ -22,7 +22,11 @@ from .netgraph import internal_chain, lane_graph, load_net, road_edges, road_gra
 
 def net_metrics(net_path: Path, area_km2: float) -> dict:
     """All net-level figures of DESIGN.md "Metrics" for the net at ``net_path`` (area in km²)."""
-    net = load_net(net_path)
+    return loaded_net_metrics(load_net(net_path), area_km2)
+
+
+def loaded_net_metrics(net: sumolib.net.Net, area_km2: float) -> dict:
+    """:func:`net_metrics` of a net already read with :func:`netgraph.load_net`."""
     lanes = lane_graph(net)
     junctions = [n.getID() for n in road_junctions(net)]
     result = dict(metrics.graph_metrics(road_graph(net), area_km2))
