@@ -29,11 +29,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from lxml import etree
 from shapely.geometry import LineString
 
 from ..hdmap.model import HDMap, Lane
-from ..scenario.xmlfile import write_xml
+from ..scenario.xmlfile import DECLARATION
+from .xmltext import Element, attr_text, leaf, sub, write
 
 GENERATOR = "roadweaver-sumo"
 LANE_TAG = "roadweaver:lane"  # the HD map lane id of a lanelet, for loaders and debugging
@@ -104,7 +104,12 @@ def local_to_latlon(x, y, origin: tuple[float, float]) -> tuple[np.ndarray, np.n
 def untangle(points: np.ndarray) -> np.ndarray:
     """``points`` without the loops and fold-backs that offsetting a sharp bend leaves in a
     boundary, and without sub-millimetre steps; the end points stay (they are shared nodes)."""
-    points = _cut_loops(np.asarray(points, float)).tolist()  # plain floats: a hot loop
+    points = _cut_loops(np.asarray(points, float))
+    step = np.diff(points, axis=0)
+    if (len(step) and np.hypot(step[:, 0], step[:, 1]).min() > 1.001 * MIN_STEP_M  # margin: math.hypot below
+            and (step[:-1, 0] * step[1:, 0] + step[:-1, 1] * step[1:, 1] >= 0).all()):
+        return points  # no short step and no fold-back: the loop below would keep every point
+    points = points.tolist()  # plain floats: a hot loop
     kept = [points[0]]
     for index, (x, y) in enumerate(points[1:], start=1):
         if math.hypot(x - kept[-1][0], y - kept[-1][1]) < MIN_STEP_M:
@@ -120,8 +125,8 @@ def untangle(points: np.ndarray) -> np.ndarray:
 
 def _cut_loops(points: np.ndarray) -> np.ndarray:
     """Replace each self-crossing loop by its crossing point (swallowtails of offset curves)."""
-    if len(points) < 4 or LineString(points).is_simple:
-        return points
+    if len(points) < 4 or _turning(points) < 0.99 * math.pi or LineString(points).is_simple:
+        return points  # a polyline turning less than half a turn in all cannot cross itself
     i = 0
     while i < len(points) - 3:
         a, b = points[i], points[i + 1]
@@ -134,6 +139,13 @@ def _cut_loops(points: np.ndarray) -> np.ndarray:
             points = np.vstack([points[:i + 1], crossing, points[j + 1:]])
         i += 1
     return points
+
+
+def _turning(points: np.ndarray) -> float:
+    """Total absolute turning (rad) of a polyline; a zero-length step only adds to it."""
+    step = np.diff(points, axis=0)
+    heading = np.arctan2(step[:, 1], step[:, 0])
+    return float(np.abs(np.angle(np.exp(1j * np.diff(heading)))).sum())
 
 
 def _segment_crossings(a, b, starts, ends):
@@ -182,7 +194,7 @@ def _left_slot(hd: HDMap, lane: Lane, plan: _Plan) -> None:
     else:
         opposite = hd.roads[lane.road].lanes("b" if lane.direction == "f" else "f")
         tags = SOLID if opposite else CURB
-    plan.ways[(lane.id, "left")] = _Way(untangle(lane.left), tags)
+    plan.ways[(lane.id, "left")] = _Way(lane.left, tags)  # untangled in _plan_ways
     plan.slots[(lane.id, "left")] = (lane.id, "left")
 
 
@@ -191,7 +203,7 @@ def _right_slot(lane: Lane, plan: _Plan) -> None:
         plan.slots[(lane.id, "right")] = (lane.right_neighbour, "left")
         return
     tags = VIRTUAL if lane.kind == "connector" else CURB
-    plan.ways[(lane.id, "right")] = _Way(untangle(lane.right), tags)
+    plan.ways[(lane.id, "right")] = _Way(lane.right, tags)
     plan.slots[(lane.id, "right")] = (lane.id, "right")
 
 
@@ -200,7 +212,34 @@ def _plan_ways(hd: HDMap) -> _Plan:
     for lane in _lane_order(hd):
         _left_slot(hd, lane, plan)
         _right_slot(lane, plan)
+    ways = list(plan.ways.values())
+    for way, clean in zip(ways, _clean([w.points for w in ways]), strict=True):
+        way.points = np.asarray(way.points, float) if clean else untangle(way.points)
     return plan
+
+
+def _clean(polylines: list) -> np.ndarray:
+    """Per polyline, whether :func:`untangle` would return it unchanged because it turns less
+    than half a turn in all (so it cannot cross itself), has no sub-millimetre step and never
+    turns by more than 90 degrees: one vectorised pass over all boundaries of the map instead
+    of a dozen small numpy calls per boundary."""
+    sizes = np.array([len(p) for p in polylines])
+    pts = np.concatenate([np.asarray(p, float).reshape(-1, 2) for p in polylines])
+    owner = np.repeat(np.arange(len(polylines)), sizes)
+    step = np.diff(pts, axis=0)
+    inside = owner[1:] == owner[:-1]  # steps between two polylines are not steps
+    step, step_owner = step[inside], owner[1:][inside]
+    short = np.hypot(step[:, 0], step[:, 1]) <= 1.001 * MIN_STEP_M  # margin: untangle's hypot
+    pair = step_owner[1:] == step_owner[:-1]
+    a, b = step[:-1][pair], step[1:][pair]
+    fold = a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] < 0
+    heading = np.arctan2(step[:, 1], step[:, 0])
+    turn = np.abs(np.angle(np.exp(1j * (heading[1:] - heading[:-1])[pair])))
+    n = len(polylines)
+    turning = np.bincount(step_owner[1:][pair], weights=turn, minlength=n)
+    bad = (np.bincount(step_owner[short], minlength=n)
+           + np.bincount(step_owner[1:][pair][fold], minlength=n))
+    return (bad == 0) & ((sizes < 4) | (turning < 0.99 * math.pi)) & (sizes >= 2)
 
 
 def _end_point(plan: _Plan, lane_id: str, side: str, at_end: bool) -> tuple:
@@ -243,6 +282,13 @@ class _Ids:
         self.node_xy[nid] = (float(xy[0]), float(xy[1]))
         return nid
 
+    def nodes(self, points: np.ndarray) -> list[int]:
+        """New consecutive node ids for ``points`` (as :meth:`node` one by one, but faster)."""
+        first = self.next
+        self.next += len(points)
+        self.node_xy.update(zip(range(first, self.next), map(tuple, points.tolist())))
+        return list(range(first, self.next))
+
 
 def _assign_nodes(hd: HDMap, plan: _Plan, ids: _Ids) -> None:
     """Give every way its node ids; end points joined by a successor link share one node, placed
@@ -263,7 +309,7 @@ def _assign_nodes(hd: HDMap, plan: _Plan, ids: _Ids) -> None:
 
     for key, way in plan.ways.items():
         first = end_node(key, 0, way.points[0])
-        inner = [ids.node(p) for p in way.points[1:-1]]
+        inner = ids.nodes(way.points[1:-1])
         way.nodes = [first, *inner, end_node(key, 1, way.points[-1])]
 
 
@@ -312,26 +358,24 @@ def speed_limit_tag(speed_mps: float) -> str:
     return f"{round(speed_mps * 3.6, 2):g}"
 
 
-def _element(parent, tag: str, eid: int) -> etree._Element:
-    return etree.SubElement(parent, tag, {"id": str(eid), "visible": "true", "version": "1"})
+def _element(parent, tag: str, eid: int) -> Element:
+    return sub(parent, tag, f' id="{eid}" visible="true" version="1"')
 
 
 def _add_tags(element, tags) -> None:
-    for key, value in tags:
-        etree.SubElement(element, "tag", {"k": key, "v": value})
+    element.extend([leaf("tag", attr_text((("k", key), ("v", value)))) for key, value in tags])
 
 
 def _add_way(root, wid: int, nodes: list[int], tags) -> None:
     way = _element(root, "way", wid)
-    for nid in nodes:
-        etree.SubElement(way, "nd", {"ref": str(nid)})
+    way.extend([f'<nd ref="{nid}"/>' for nid in nodes])
     _add_tags(way, tags)
 
 
 def _add_relation(root, rid: int, members: list[tuple[str, int, str]], tags) -> None:
     relation = _element(root, "relation", rid)
-    for kind, ref, role in members:
-        etree.SubElement(relation, "member", {"type": kind, "ref": str(ref), "role": role})
+    relation.extend([leaf("member", attr_text((("type", kind), ("ref", str(ref)), ("role", role))))
+                     for kind, ref, role in members])
     _add_tags(relation, tags)
 
 
@@ -343,16 +387,16 @@ def _add_nodes(root, hd: HDMap, ids: _Ids) -> None:
     node_ids = sorted(ids.node_xy)
     xy = np.array([ids.node_xy[n] for n in node_ids])
     lat, lon = local_to_latlon(xy[:, 0], xy[:, 1], hd.geo_origin)
-    for nid, la, lo in zip(node_ids, lat.tolist(), lon.tolist()):
-        etree.SubElement(root, "node", {"id": str(nid), "visible": "true", "version": "1",
-                                        "lat": _degrees(la), "lon": _degrees(lo)})
+    root.extend([f'<node id="{nid}" visible="true" version="1"'
+                 f' lat="{la:.{DEGREE_DECIMALS}f}" lon="{lo:.{DEGREE_DECIMALS}f}"/>'
+                 for nid, la, lo in zip(node_ids, lat.tolist(), lon.tolist(), strict=True)])
 
 
 def _add_bounds(root, hd: HDMap) -> None:
     lat, lon = local_to_latlon([0.0, hd.width, 0.0, hd.width], [0.0, 0.0, hd.height, hd.height],
                                hd.geo_origin)
-    etree.SubElement(root, "bounds", {"minlat": _degrees(lat.min()), "minlon": _degrees(lon.min()),
-                                      "maxlat": _degrees(lat.max()), "maxlon": _degrees(lon.max())})
+    sub(root, "bounds", attr_text((("minlat", _degrees(lat.min())), ("minlon", _degrees(lon.min())),
+                                   ("maxlat", _degrees(lat.max())), ("maxlon", _degrees(lon.max())))))
 
 
 def _lanelet_tags(lane: Lane) -> tuple:
@@ -360,7 +404,7 @@ def _lanelet_tags(lane: Lane) -> tuple:
             ("speed_limit", speed_limit_tag(lane.speed)), (LANE_TAG, lane.id))
 
 
-def lanelet2_tree(hd: HDMap) -> etree._Element:
+def lanelet2_tree(hd: HDMap) -> Element:
     """The ``<osm>`` element of ``hd`` in lanelet2 format (see the module docstring)."""
     if hd.geo_origin is None:
         raise ValueError("the HD map has no geo_origin; lanelet2 files need lat/lon")
@@ -371,7 +415,7 @@ def lanelet2_tree(hd: HDMap) -> etree._Element:
     signals, signal_ways = _signals(hd, plan, ids)
     regulatory = {lane: s.id for s in signals for lane in s.lanes}
 
-    root = etree.Element("osm", {"version": "0.6", "generator": GENERATOR})
+    root = Element("osm", attr_text((("version", "0.6"), ("generator", GENERATOR))))
     _add_bounds(root, hd)
     _add_nodes(root, hd, ids)
     ways = {way_ids[key]: (way.nodes, way.tags) for key, way in plan.ways.items()} | signal_ways
@@ -393,4 +437,4 @@ def lanelet2_tree(hd: HDMap) -> etree._Element:
 
 def write_lanelet2(hd: HDMap, path: Path) -> Path:
     """Write ``hd`` as a lanelet2-format OSM file and return its path."""
-    return write_xml(lanelet2_tree(hd), Path(path))
+    return write(lanelet2_tree(hd), Path(path), indent="    ", declaration=DECLARATION)

@@ -23,11 +23,11 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-from lxml import etree
 
 from ..hdmap.geometry import cut
 from ..hdmap.model import DIRECTIONS, HDMap, Lane, Road
 from .opendrive_geometry import DECIMALS, Piece, bezier_pieces, fillet_pieces
+from .xmltext import Element, cdata, escape, leaf, sub, write
 
 CURVATURE_DECIMALS = 15  # an arc's end moves by length^2 / 2 times the curvature's rounding
 DATE = "2025-01-01T00:00:00"  # fixed, so that two runs write the same bytes
@@ -41,18 +41,16 @@ def write_opendrive(hd: HDMap, path: Path) -> Path:
     """Write ``hd`` as OpenDRIVE 1.7 to ``path`` (parent folders created); return the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    etree.ElementTree(opendrive_tree(hd)).write(str(path), pretty_print=True,
-                                                xml_declaration=True, encoding="UTF-8")
-    return path
+    return write(opendrive_tree(hd), path)
 
 
-def opendrive_tree(hd: HDMap) -> etree._Element:
+def opendrive_tree(hd: HDMap) -> Element:
     """The ``<OpenDRIVE>`` element of ``hd``: header, roads, connecting roads, controllers,
     junctions, in that (schema) order."""
     plans = {rid: fillet_pieces(reference_line(hd.roads[rid])) for rid in sorted(hd.roads)}
     connecting = connecting_road_ids(hd)
     signals, controllers = _traffic_lights(hd, plans)
-    root = etree.Element("OpenDRIVE")
+    root = Element("OpenDRIVE")
     root.append(_header(hd))
     for rid, plan in plans.items():
         root.append(_road(hd, hd.roads[rid], plan, signals.get(rid, [])))
@@ -94,22 +92,36 @@ def _num(x: float, decimals: int = DECIMALS) -> str:
     return text[1:] if text[0] == "-" and not text.strip("-0.") else text
 
 
-def _attrs(attrs: dict) -> dict[str, str]:
-    """Attribute strings: floats with fixed decimals, a trailing ``_`` dropped (``from_``)."""
-    return {k.rstrip("_"): _num(v) if isinstance(v, float) else str(v) for k, v in attrs.items()}
+def _attrs(attrs: dict) -> str:
+    """Attribute text: floats with fixed decimals, a trailing ``_`` dropped (``from_``)."""
+    parts = []
+    for key, value in attrs.items():
+        if isinstance(value, float):
+            value = _num(value)
+        elif isinstance(value, str):
+            value = escape(value)
+        else:  # ids and counts: nothing to escape
+            value = str(value)
+        parts.append(f' {key.rstrip("_")}="{value}"')
+    return "".join(parts)
 
 
-def _elem(tag: str, **attrs) -> etree._Element:
+def _elem(tag: str, **attrs) -> Element:
     """A new element with formatted attributes."""
-    return etree.Element(tag, _attrs(attrs))
+    return Element(tag, _attrs(attrs))
 
 
-def _sub(parent: etree._Element, tag: str, **attrs) -> etree._Element:
+def _sub(parent: Element, tag: str, **attrs) -> Element:
     """A new child element with formatted attributes."""
-    return etree.SubElement(parent, tag, _attrs(attrs))
+    return sub(parent, tag, _attrs(attrs))
 
 
-def _header(hd: HDMap) -> etree._Element:
+def _leaf(parent: Element, tag: str, **attrs) -> None:
+    """A new childless child element with formatted attributes (cheaper than :func:`_sub`)."""
+    parent.children.append(leaf(tag, _attrs(attrs)))
+
+
+def _header(hd: HDMap) -> Element:
     """``<header>`` with the map extent and a transverse Mercator geo-reference centred on
     the local origin (chapter "Georeferencing": PROJ string)."""
     header = _elem("header", revMajor=1, revMinor=7, name="roadweaver-sumo", version="1.0",
@@ -119,32 +131,34 @@ def _header(hd: HDMap) -> etree._Element:
         lat, lon = hd.geo_origin
         proj = (f"+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +ellps=WGS84"
                 " +units=m +no_defs")
-        etree.SubElement(header, "geoReference").text = etree.CDATA(proj)
+        sub(header, "geoReference").text = cdata(proj)
     return header
 
 
-def _plan_view(parent: etree._Element, pieces: list[Piece]) -> None:
+def _plan_view(parent: Element, pieces: list[Piece]) -> None:
     """``<planView>``: one ``<geometry>`` per piece (chapter "Geometry")."""
     plan = _sub(parent, "planView")
-    for p in pieces:
-        geometry = _sub(plan, "geometry", s=p.s, x=p.x, y=p.y, hdg=p.hdg, length=p.length)
+    for p in pieces:  # formatted inline: the hottest element of the file (all fields floats)
+        geometry = sub(plan, "geometry", f' s="{_num(p.s)}" x="{_num(p.x)}" y="{_num(p.y)}"'
+                                         f' hdg="{_num(p.hdg)}" length="{_num(p.length)}"')
         if p.kind == "line":
-            _sub(geometry, "line")
+            geometry.children.append("<line/>")
         elif p.kind == "arc":
-            _sub(geometry, "arc", curvature=_num(p.curvature, CURVATURE_DECIMALS))
+            _leaf(geometry, "arc", curvature=_num(p.curvature, CURVATURE_DECIMALS))
         else:
-            coeffs = {f"{c}{axis}": float(value) for axis, values in (("U", p.u), ("V", p.v))
-                      for c, value in zip("abcd", values, strict=True)}
-            _sub(geometry, "paramPoly3", **coeffs, pRange="normalized")
+            coeffs = "".join(f' {c}{axis}="{_num(float(value))}"'
+                             for axis, values in (("U", p.u), ("V", p.v))
+                             for c, value in zip("abcd", values, strict=True))
+            geometry.children.append(f'<paramPoly3{coeffs} pRange="normalized"/>')
 
 
-def _road_element(rid: int, name: str, junction: int, pieces: list[Piece]) -> etree._Element:
+def _road_element(rid: int, name: str, junction: int, pieces: list[Piece]) -> Element:
     """An empty ``<road>`` as long as its plan view, right-hand traffic."""
     length = sum(p.length for p in pieces)
     return _elem("road", id=rid, name=name, junction=junction, length=length, rule="RHT")
 
 
-def _road(hd: HDMap, road: Road, pieces: list[Piece], signals: list) -> etree._Element:
+def _road(hd: HDMap, road: Road, pieces: list[Piece], signals: list) -> Element:
     """A road between two junctions: its two driving directions as right and left lanes."""
     elem = _road_element(road.id, f"r{road.id}", -1, pieces)
     ends = [(tag, node) for tag, node in (("predecessor", road.from_node),
@@ -153,7 +167,7 @@ def _road(hd: HDMap, road: Road, pieces: list[Piece], signals: list) -> etree._E
     if ends:
         link = _sub(elem, "link")
         for tag, node in ends:
-            _sub(link, tag, elementType="junction", elementId=node)
+            _leaf(link, tag, elementType="junction", elementId=node)
     _road_type(elem, road.road_class, road.speed)
     _plan_view(elem, pieces)
     section = _sub(_sub(elem, "lanes"), "laneSection", s=0.0)
@@ -170,24 +184,24 @@ def _road(hd: HDMap, road: Road, pieces: list[Piece], signals: list) -> etree._E
     return elem
 
 
-def _road_type(road: etree._Element, road_class: str, speed: float) -> None:
+def _road_type(road: Element, road_class: str, speed: float) -> None:
     """``<type>`` from the road class, with the class speed limit (chapter "Road type")."""
     kind = _sub(road, "type", s=0.0, type=ROAD_TYPES.get(road_class, "town"))
-    _sub(kind, "speed", max=float(speed), unit="m/s")
+    _leaf(kind, "speed", max=float(speed), unit="m/s")
 
 
-def _road_lane(parent: etree._Element, hd: HDMap, lane: Lane) -> None:
+def _road_lane(parent: Element, hd: HDMap, lane: Lane) -> None:
     """A road lane: constant width, its outer road mark, speed limit. No ``<link>``: the road
     ends in junctions at both ends (rule road.lane.link.no_link)."""
     elem = _sub(parent, "lane", id=xodr_lane_id(hd, lane), type="driving")
-    _sub(elem, "width", sOffset=0.0, a=float(lane.width), b=0.0, c=0.0, d=0.0)
+    _leaf(elem, "width", sOffset=0.0, a=float(lane.width), b=0.0, c=0.0, d=0.0)
     _mark(elem, "solid" if lane.index == 0 else "broken")  # index 0: the outermost lane
-    _sub(elem, "speed", sOffset=0.0, max=float(lane.speed), unit="m/s")
+    _leaf(elem, "speed", sOffset=0.0, max=float(lane.speed), unit="m/s")
 
 
-def _mark(lane: etree._Element, kind: str) -> None:
+def _mark(lane: Element, kind: str) -> None:
     """A white road mark on the lane's outer border (``broken`` lines may be crossed)."""
-    _sub(lane, "roadMark", sOffset=0.0, type=kind, weight="standard", color="standard",
+    _leaf(lane, "roadMark", sOffset=0.0, type=kind, weight="standard", color="standard",
          width=MARK_WIDTH, laneChange="both" if kind == "broken" else "none")
 
 
@@ -197,33 +211,33 @@ def _contact(lane: Lane, arriving: bool) -> str:
     return "end" if (lane.direction == "f") == arriving else "start"
 
 
-def _connecting_road(hd: HDMap, lane: Lane, rid: int, piece: Piece) -> etree._Element:
+def _connecting_road(hd: HDMap, lane: Lane, rid: int, piece: Piece) -> Element:
     """A connector as a one-lane connecting road inside its junction (chapter "Junctions":
     connecting roads) along ``piece``, linked to its incoming and outgoing road and lanes."""
     incoming, outgoing = hd.lanes[lane.predecessors[0]], hd.lanes[lane.successors[0]]
     elem = _road_element(rid, lane.id, lane.junction, [piece])
     link = _sub(elem, "link")
-    _sub(link, "predecessor", elementType="road", elementId=incoming.road,
+    _leaf(link, "predecessor", elementType="road", elementId=incoming.road,
          contactPoint=_contact(incoming, arriving=True))
-    _sub(link, "successor", elementType="road", elementId=outgoing.road,
+    _leaf(link, "successor", elementType="road", elementId=outgoing.road,
          contactPoint=_contact(outgoing, arriving=False))
     _road_type(elem, lane.road_class, lane.speed)
     _plan_view(elem, [piece])
     slope = (lane.end_width - lane.width) / piece.length  # linear width along s
     lanes = _sub(elem, "lanes")
-    _sub(lanes, "laneOffset", s=0.0, a=lane.width / 2.0, b=slope / 2.0, c=0.0, d=0.0)
+    _leaf(lanes, "laneOffset", s=0.0, a=lane.width / 2.0, b=slope / 2.0, c=0.0, d=0.0)
     section = _sub(lanes, "laneSection", s=0.0)
-    _sub(_sub(section, "center"), "lane", id=0, type="none")
+    _leaf(_sub(section, "center"), "lane", id=0, type="none")
     right = _sub(_sub(section, "right"), "lane", id=-1, type="driving")
     lane_link = _sub(right, "link")
-    _sub(lane_link, "predecessor", id=xodr_lane_id(hd, incoming))
-    _sub(lane_link, "successor", id=xodr_lane_id(hd, outgoing))
-    _sub(right, "width", sOffset=0.0, a=float(lane.width), b=slope, c=0.0, d=0.0)
-    _sub(right, "speed", sOffset=0.0, max=float(lane.speed), unit="m/s")
+    _leaf(lane_link, "predecessor", id=xodr_lane_id(hd, incoming))
+    _leaf(lane_link, "successor", id=xodr_lane_id(hd, outgoing))
+    _leaf(right, "width", sOffset=0.0, a=float(lane.width), b=slope, c=0.0, d=0.0)
+    _leaf(right, "speed", sOffset=0.0, max=float(lane.speed), unit="m/s")
     return elem
 
 
-def _junction(hd: HDMap, jid: int, connecting: dict[str, int]) -> etree._Element:
+def _junction(hd: HDMap, jid: int, connecting: dict[str, int]) -> Element:
     """``<junction>``: one connection per connecting road, from its incoming road."""
     junction = hd.junctions[jid]
     elem = _elem("junction", id=jid, name=f"n{jid}", type="default")
@@ -231,9 +245,9 @@ def _junction(hd: HDMap, jid: int, connecting: dict[str, int]) -> etree._Element
         incoming = hd.lanes[hd.lanes[lane_id].predecessors[0]]
         connection = _sub(elem, "connection", id=k, incomingRoad=incoming.road,
                           connectingRoad=connecting[lane_id], contactPoint="start")
-        _sub(connection, "laneLink", from_=xodr_lane_id(hd, incoming), to=-1)
+        _leaf(connection, "laneLink", from_=xodr_lane_id(hd, incoming), to=-1)
     if junction.type == "traffic_light":
-        _sub(elem, "controller", id=jid, type="0", sequence=0)
+        _leaf(elem, "controller", id=jid, type="0", sequence=0)
     return elem
 
 
@@ -255,7 +269,7 @@ def _traffic_lights(hd: HDMap, plans: dict[int, list[Piece]]):
                 if road.ends_at(direction) != jid:
                     continue
                 signals[rid].append(_signal(road, direction, plans[rid], count, jid))
-                _sub(controller, "control", signalId=count, type="0")
+                _leaf(controller, "control", signalId=count, type="0")
                 count += 1
         controllers.append(controller)
     return signals, controllers
@@ -274,5 +288,5 @@ def _signal(road: Road, direction: str, pieces: list[Piece], sid: int, jid: int)
                  orientation="+" if direction == "f" else "-", zOffset=2.0,
                  **SIGNAL_CATALOGUE, height=0.9, width=0.3)
     lanes = (-n, -1) if direction == "f" else (1, n)
-    _sub(elem, "validity", fromLane=lanes[0], toLane=lanes[1])
+    _leaf(elem, "validity", fromLane=lanes[0], toLane=lanes[1])
     return elem
