@@ -70,6 +70,15 @@ def test_bad_suite_arguments_give_one_line_errors(tmp_path, capsys, change, mess
     assert not (tmp_path / "s").exists()
 
 
+def test_unreachable_ray_address_fails_fast(tmp_path, capsys):
+    argv = ["make-suite", "--out", str(tmp_path / "s"), "--engine", "ray", "--address",
+            "127.0.0.1:1"] + [x for kv in GOOD.items() for x in kv]  # fmt: skip
+    assert main(argv) == 2
+    err = _one_line_error(capsys)
+    assert "cannot reach Ray at 127.0.0.1:1" in err or "needs Ray" in err
+    assert not (tmp_path / "s").exists()
+
+
 def test_fuzzed_suite_arguments_never_raise(tmp_path, capsys):
     """Random values for every option: always a one-line error (the output path is a file, so
     even a valid combination stops before building anything)."""

@@ -10,6 +10,8 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
+import re
+import socket
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -45,6 +47,20 @@ def check_engine(engine: str, workers: int | None, address: str | None) -> None:
             raise RoadweaverError(f"--engine ray needs Ray; {RAY_HINT}") from None
     if engine == "local" or address is None:
         check_workers(workers)
+    if address is not None:
+        _check_reachable(address)
+
+
+def _check_reachable(address: str) -> None:
+    """A HOST:PORT (or ray://HOST:PORT) that nothing answers on is an error within seconds;
+    ray.init would retry for minutes. Other forms (``auto``) are left to Ray."""
+    match = re.fullmatch(r"(?:ray://)?\[?([^\[\]]+?)\]?:(\d{1,5})", address.strip())
+    if not match:
+        return
+    try:
+        socket.create_connection((match.group(1), int(match.group(2))), timeout=5).close()
+    except (OSError, ValueError, OverflowError) as exc:
+        raise RoadweaverError(f"cannot reach Ray at {address}: {exc}") from None
 
 
 def run_jobs(
