@@ -77,6 +77,8 @@ def check_job(job: tuple[str, dict, bool]) -> tuple[str, list[str]]:
             problems += _regenerate(entry)
     except OSError as exc:
         problems = [f"cannot read the scenario: {exc.strerror or exc}"]
+    except Exception as exc:  # noqa: BLE001 - a damaged folder is a finding, not a crash
+        problems = [f"check failed: {type(exc).__name__}: {exc}"]
     return name, problems
 
 
