@@ -24,6 +24,7 @@ at the same origin reads them back within a millimetre on maps of a few kilometr
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -363,7 +364,13 @@ def _element(parent, tag: str, eid: int) -> Element:
 
 
 def _add_tags(element, tags) -> None:
-    element.extend([leaf("tag", attr_text((("k", key), ("v", value)))) for key, value in tags])
+    element.extend(_tag_lines(tags))
+
+
+@functools.lru_cache(maxsize=64)
+def _tag_lines(tags: tuple) -> list[str]:
+    """``<tag>`` texts of a tags tuple; way tags repeat thousands of times."""
+    return [leaf("tag", attr_text((("k", key), ("v", value)))) for key, value in tags]
 
 
 def _add_way(root, wid: int, nodes: list[int], tags) -> None:
@@ -374,9 +381,12 @@ def _add_way(root, wid: int, nodes: list[int], tags) -> None:
 
 def _add_relation(root, rid: int, members: list[tuple[str, int, str]], tags) -> None:
     relation = _element(root, "relation", rid)
-    relation.extend([leaf("member", attr_text((("type", kind), ("ref", str(ref)), ("role", role))))
+    relation.extend([f'<member type="{kind}" ref="{ref}" role="{role}"/>'  # plain words: no escaping
                      for kind, ref, role in members])
-    _add_tags(relation, tags)
+    if tags and tags[0] == ("type", "lanelet"):  # unique per lane: not worth caching
+        relation.extend([leaf("tag", attr_text((("k", key), ("v", value)))) for key, value in tags])
+    else:
+        _add_tags(relation, tags)
 
 
 def _degrees(value: float) -> str:

@@ -106,6 +106,13 @@ def _attrs(attrs: dict) -> str:
     return "".join(parts)
 
 
+_ZERO = _num(0.0)
+_MARKS = {kind: leaf("roadMark", _attrs({"sOffset": 0.0, "type": kind, "weight": "standard",
+                                         "color": "standard", "width": MARK_WIDTH,
+                                         "laneChange": "both" if kind == "broken" else "none"}))
+          for kind in ("solid", "broken")}
+
+
 def _elem(tag: str, **attrs) -> Element:
     """A new element with formatted attributes."""
     return Element(tag, _attrs(attrs))
@@ -186,23 +193,32 @@ def _road(hd: HDMap, road: Road, pieces: list[Piece], signals: list) -> Element:
 
 def _road_type(road: Element, road_class: str, speed: float) -> None:
     """``<type>`` from the road class, with the class speed limit (chapter "Road type")."""
-    kind = _sub(road, "type", s=0.0, type=ROAD_TYPES.get(road_class, "town"))
-    _leaf(kind, "speed", max=float(speed), unit="m/s")
+    kind = sub(road, "type", f' s="{_ZERO}" type="{ROAD_TYPES.get(road_class, "town")}"')
+    kind.children.append(f'<speed max="{_num(float(speed))}" unit="m/s"/>')
 
 
 def _road_lane(parent: Element, hd: HDMap, lane: Lane) -> None:
     """A road lane: constant width, its outer road mark, speed limit. No ``<link>``: the road
     ends in junctions at both ends (rule road.lane.link.no_link)."""
-    elem = _sub(parent, "lane", id=xodr_lane_id(hd, lane), type="driving")
-    _leaf(elem, "width", sOffset=0.0, a=float(lane.width), b=0.0, c=0.0, d=0.0)
+    elem = sub(parent, "lane", f' id="{xodr_lane_id(hd, lane)}" type="driving"')
+    elem.children.append(_width(float(lane.width), 0.0))
     _mark(elem, "solid" if lane.index == 0 else "broken")  # index 0: the outermost lane
-    _leaf(elem, "speed", sOffset=0.0, max=float(lane.speed), unit="m/s")
+    elem.children.append(_speed(float(lane.speed)))
+
+
+def _width(a: float, b: float) -> str:
+    """``<width>`` text: linear width ``a + b s`` (formatted inline: one per lane)."""
+    return (f'<width sOffset="{_ZERO}" a="{_num(a)}" b="{_num(b)}" c="{_ZERO}"'
+            f' d="{_ZERO}"/>')
+
+
+def _speed(speed: float) -> str:
+    return f'<speed sOffset="{_ZERO}" max="{_num(speed)}" unit="m/s"/>'
 
 
 def _mark(lane: Element, kind: str) -> None:
     """A white road mark on the lane's outer border (``broken`` lines may be crossed)."""
-    _leaf(lane, "roadMark", sOffset=0.0, type=kind, weight="standard", color="standard",
-         width=MARK_WIDTH, laneChange="both" if kind == "broken" else "none")
+    lane.children.append(_MARKS[kind])
 
 
 def _contact(lane: Lane, arriving: bool) -> str:
@@ -232,8 +248,8 @@ def _connecting_road(hd: HDMap, lane: Lane, rid: int, piece: Piece) -> Element:
     lane_link = _sub(right, "link")
     _leaf(lane_link, "predecessor", id=xodr_lane_id(hd, incoming))
     _leaf(lane_link, "successor", id=xodr_lane_id(hd, outgoing))
-    _leaf(right, "width", sOffset=0.0, a=float(lane.width), b=slope, c=0.0, d=0.0)
-    _leaf(right, "speed", sOffset=0.0, max=float(lane.speed), unit="m/s")
+    right.children.append(_width(float(lane.width), slope))
+    right.children.append(_speed(float(lane.speed)))
     return elem
 
 

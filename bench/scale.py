@@ -1,0 +1,198 @@
+"""Scale and speed (issue 5): stage times, peak memory, netgenerate at the same node count, and
+quality side by side with netgenerate rand / grid / spider and a real OSM import.
+
+Usage: python bench/scale.py [--sizes 2000,4000,10000] [--repeats 5,3,1] [--density 30]
+                             [--skeleton procedural] [--osm FILE] [--json FILE]
+
+Every generation runs in its own process, so that its peak memory (ru_maxrss) is its own;
+"generation" is skeleton + expansion + hdmap + export (our files written), "total" adds
+netconvert and demand. Validation is not timed. Quality figures all come from ``evaluate``.
+CPU contention (a training job, the load average) is recorded, since it inflates every time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+STAGES = ("skeleton", "expansion", "hdmap", "export", "netconvert", "demand")
+GENERATION = ("skeleton", "expansion", "hdmap", "export")
+QUALITY = ("road_nodes", "density", "lcc_ratio", "dead_end_ratio", "cycle_ratio",
+           "crossings_without_junction", "bearing_entropy", "orientation_order",
+           "lane_reachability", "junction_reachability")
+DEFAULT_OSM = Path("/work/shared/data/osm/bad-hersfeld-de.osm.gz")
+RAND_NODES_PER_ITERATION = 0.85  # netgenerate --rand: road nodes per iteration, measured
+
+
+def child(size: float, density: float, seed: int, skeleton: str, folder: Path) -> None:
+    """One generation in this process: print stage times, peak RSS and road nodes as JSON."""
+    from roadweaver_sumo.pipeline import build_scenario_files
+    from roadweaver_sumo.spec import ScenarioSpec
+
+    spec = ScenarioSpec(density=density, vehicles=500, width=size, height=size, seed=seed,
+                        skeleton=skeleton)
+    stages: dict[str, float] = {}
+    generation = build_scenario_files(spec, folder, stages, lambda msg: None)
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(json.dumps({"stages": stages, "peak_mb": peak_mb,
+                      "road_nodes": generation["road_graph"]["road_nodes"]}))
+
+
+def run_child(size: float, density: float, seed: int, skeleton: str, folder: Path) -> dict:
+    out = subprocess.run([sys.executable, __file__, "--child", f"{size},{density},{seed}",
+                          "--skeleton", skeleton, "--folder", str(folder)],
+                         capture_output=True, text=True, check=True)  # fmt: skip
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def contention() -> dict:
+    """What else competes for the CPU: a running training job and the 1-minute load."""
+    train = subprocess.run(["pgrep", "-f", "train "], capture_output=True, text=True,
+                           check=False).stdout
+    return {"training_running": bool(train.strip()), "load_1min": os.getloadavg()[0],
+            "cpus": os.cpu_count()}
+
+
+def sumo_binary(name: str) -> str:
+    from roadweaver_sumo.sumo_tools import binary
+
+    return binary(name)
+
+
+def netgenerate(args: list[str], out: Path) -> float:
+    """Run netgenerate; return its wall time (s)."""
+    from roadweaver_sumo.sumo_tools import child_env
+
+    start = time.perf_counter()
+    subprocess.run([sumo_binary("netgenerate"), *args, "--seed", "1", "-o", str(out)],
+                   env=child_env(), capture_output=True, check=True)  # fmt: skip
+    return time.perf_counter() - start
+
+
+def osm_import(osm: Path, folder: Path, side: float) -> Path:
+    """The OSM file as a SUMO net (passenger roads), cut to a ``side`` square at its centre.
+    ``.pbf`` is first converted with pyosmium (netconvert 1.28 cannot read it, NOTES.md)."""
+    from roadweaver_sumo.sumo_tools import child_env
+
+    if osm.suffix == ".pbf":
+        import osmium
+
+        xml = folder / "osm.osm"
+        with osmium.SimpleWriter(str(xml)) as writer:
+            for obj in osmium.FileProcessor(str(osm)):
+                writer.add(obj)
+        osm = xml
+    options = ["--geometry.remove", "--junctions.join", "--tls.guess-signals",
+               "--keep-edges.by-vclass", "passenger", "--remove-edges.isolated",
+               "--no-turnarounds"]
+    full = folder / "osm_full.net.xml"
+    subprocess.run([sumo_binary("netconvert"), "--osm-files", str(osm), *options, "-o", str(full)],
+                   env=child_env(), capture_output=True, check=True)  # fmt: skip
+    from roadweaver_sumo.validate.netgraph import load_net
+
+    x0, y0, x1, y1 = load_net(full).getBoundary()
+    cx, cy, h = (x0 + x1) / 2, (y0 + y1) / 2, side / 2
+    crop = folder / "osm.net.xml"
+    subprocess.run([sumo_binary("netconvert"), "-s", str(full), "--keep-edges.in-boundary",
+                    f"{cx - h},{cy - h},{cx + h},{cy + h}", "--remove-edges.isolated",
+                    "-o", str(crop)], env=child_env(), capture_output=True, check=True)
+    return crop
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", default="2000,4000,10000")
+    ap.add_argument("--repeats", default="5,3,1", help="runs per size (seeds 0..n-1)")
+    ap.add_argument("--density", type=float, default=30.0)
+    ap.add_argument("--skeleton", default="procedural")
+    ap.add_argument("--osm", type=Path, default=DEFAULT_OSM, help="OSM file for the real import")
+    ap.add_argument("--json", type=Path, default=Path("bench/results/scale.json"))
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    ap.add_argument("--folder", type=Path, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        size, density, seed = args.child.split(",")
+        child(float(size), float(density), int(seed), args.skeleton, args.folder)
+        return
+    sizes = [float(s) for s in args.sizes.split(",")]
+    repeats = [int(r) for r in args.repeats.split(",")]
+    results = {"contention_before": contention(), "skeleton": args.skeleton,
+               "density": args.density, "sizes": {}}
+    work = Path(tempfile.mkdtemp(prefix="rw-scale-"))
+    print(f"contention: {results['contention_before']}")
+    print("size_m " + " ".join(f"{s:>10s}" for s in STAGES)
+          + "  generation  total  gen/km2  peak_MB  nodes  netgenerate  ratio")
+    for size, n in zip(sizes, repeats, strict=True):
+        runs = [run_child(size, args.density, seed, args.skeleton, work / f"ours-{size:.0f}-{seed}")
+                for seed in range(n)]
+        med = {s: statistics.median(r["stages"][s] for r in runs) for s in STAGES}
+        gen = statistics.median(sum(r["stages"][s] for s in GENERATION) for r in runs)
+        total = statistics.median(sum(r["stages"].values()) for r in runs)
+        nodes = runs[0]["road_nodes"]
+        iterations = max(1, round(nodes / RAND_NODES_PER_ITERATION))
+        rand = work / f"rand-{size:.0f}.net.xml"
+        rand_s = netgenerate(["--rand", "--rand.iterations", str(iterations)], rand)
+        area = size * size / 1e6
+        entry = {"median_s": med, "generation_s": gen, "total_s": total,
+                 "generation_per_km2_s": gen / area, "peak_mb": max(r["peak_mb"] for r in runs),
+                 "road_nodes": nodes, "runs": runs, "netgenerate_rand_s": rand_s,
+                 "netgenerate_rand_iterations": iterations,
+                 "netgenerate_over_generation": rand_s / gen}
+        results["sizes"][f"{size:.0f}"] = entry
+        print(f"{size:6.0f} " + " ".join(f"{med[s]:10.3f}" for s in STAGES)
+              + f"  {gen:10.3f} {total:6.2f}  {gen / area:7.4f}  {entry['peak_mb']:7.0f}"
+              f"  {nodes:5d}  {rand_s:10.2f}  {rand_s / gen:5.2f}x", flush=True)
+    base = results["sizes"][f"{sizes[0]:.0f}"]["generation_per_km2_s"]
+    for size in sizes[1:]:
+        ratio = results["sizes"][f"{size:.0f}"]["generation_per_km2_s"] / base
+        results["sizes"][f"{size:.0f}"]["per_km2_vs_smallest"] = ratio
+        print(f"generation time per km² at {size:.0f} m / at {sizes[0]:.0f} m: {ratio:.2f}x")
+    results["quality"] = quality(args, sizes[0], work)
+    results["contention_after"] = contention()
+    print(f"contention: {results['contention_after']}")
+    args.json.parent.mkdir(parents=True, exist_ok=True)
+    args.json.write_text(json.dumps(results, indent=1) + "\n")
+
+
+def quality(args, side: float, work: Path) -> dict:
+    """``evaluate`` on ours and the alternatives at the first size and the same density."""
+    from roadweaver_sumo.validate.evaluate import evaluate_net
+
+    nodes = round(args.density * side * side / 1e6)
+    per_side = max(2, round(nodes ** 0.5))
+    arms = 8
+    circles = max(1, round((nodes - 1) / arms))
+    nets = {"ours": work / f"ours-{side:.0f}-0" / "map.net.xml"}
+    nets["netgenerate rand"] = work / "q-rand.net.xml"
+    netgenerate(["--rand", "--rand.iterations", str(round(nodes / RAND_NODES_PER_ITERATION))],
+                nets["netgenerate rand"])
+    nets["netgenerate grid"] = work / "q-grid.net.xml"
+    netgenerate(["--grid", "--grid.number", str(per_side),
+                 "--grid.length", f"{side / (per_side - 1):.1f}"], nets["netgenerate grid"])
+    nets["netgenerate spider"] = work / "q-spider.net.xml"
+    netgenerate(["--spider", "--spider.arm-number", str(arms), "--spider.circle-number",
+                 str(circles), "--spider.space-radius", f"{side / 2 / circles:.1f}"],
+                nets["netgenerate spider"])
+    if args.osm and args.osm.is_file():
+        nets[f"OSM {args.osm.name.split('.')[0]}"] = osm_import(args.osm, work, side)
+    table = {}
+    print(f"\nquality at {side:.0f} m, target density {args.density:g}/km² (evaluate):")
+    print(f"{'net':24s} " + " ".join(f"{q[:12]:>12s}" for q in QUALITY))
+    for name, path in nets.items():
+        result = evaluate_net(path, (side * side / 1e6) if name == "ours" else None)
+        table[name] = {q: result[q] for q in QUALITY} | {"area_km2": result["area_km2"],
+                                                         "alignment_mean": result["alignment"]["mean"]}
+        print(f"{name:24s} " + " ".join(f"{result[q]:12.4g}" for q in QUALITY))
+    return table
+
+
+if __name__ == "__main__":
+    main()
