@@ -90,13 +90,14 @@ def _trace(A: sparse.csr_matrix, node: np.ndarray):
 
 def skeleton_graph(mask: np.ndarray, res: float, tile_m: float,
                    road_class: str = "arterial") -> nx.Graph:
-    """Road graph of the centrelines of a boolean road mask (``[iy, ix]``, pixels ``res`` m)."""
+    """Road graph of the centrelines of a boolean road mask (``[iy, ix]``, pixels ``res`` m,
+    ``tile_m`` wide; a rectangular mask gives a rectangular map)."""
     skeleton = skeletonize(mask)
     pix, A = pixel_graph(skeleton)
     degree = np.asarray(A.sum(axis=1)).ravel().astype(int)
     node = _key_clusters(A, degree)
     xy = (pix[:, ::-1] + 0.5) * res
-    G = new_road_graph(tile_m, tile_m)
+    G = new_road_graph(tile_m, tile_m * mask.shape[0] / mask.shape[1])
     for n in np.unique(node[node >= 0]):
         G.add_node(int(n), xy=tuple(float(v) for v in xy[node == n].mean(axis=0)))
     fresh = node_counter(G, start=len(pix) + 1)
