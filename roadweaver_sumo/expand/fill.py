@@ -15,6 +15,7 @@ import math
 import networkx as nx
 import numpy as np
 import shapely
+from scipy.spatial import cKDTree
 from shapely.geometry import LineString, Point, Polygon
 
 from ..metrics import road_node_count
@@ -45,18 +46,53 @@ def fill_to_density(
     heapq.heapify(heap)
     counter = len(heap)
     index = EdgeIndex(G)
-    while heap and road_node_count(G) < target - 1:
+    nodes = _NodePoints(G)
+    count = road_node_count(G)
+    while heap and count < target - 1:
         _, _, face = heapq.heappop(heap)
-        nodes = np.array([G.nodes[n]["xy"] for n in G.nodes])
         chord = split_chord(face, nodes, field, rng, min_edge, min_angle)
         if chord is None:
             continue
-        if not insert_chord(G, chord, min_edge, index):
+        ends = insert_chord(G, chord, min_edge, index)
+        nodes.update()  # a refused chord may still have split a road at its first end
+        if ends is None:
             continue
+        # A chord adds one to the degree of its two end nodes; the other nodes it may create
+        # (a shape node, a split point before the chord reaches it) have degree 2: not counted.
+        count += sum((G.degree(n) != 2) - (G.degree(n) - 1 != 2) for n in ends)
         for part in shapely.get_parts(shapely.ops.split(face, _extended(chord, 1.0))):
             if part.area > 1.0:
                 heapq.heappush(heap, (-part.area, counter, part))
                 counter += 1
+
+
+class _NodePoints:
+    """The junction positions of ``G`` for "is any node near this point" (asked for every chord
+    end): a k-d tree over the nodes at the start plus the few added since, instead of an array of
+    every node rebuilt for each block."""
+
+    def __init__(self, G: nx.Graph):
+        self.G = G
+        self.top = max(G.nodes, default=-1)
+        self.tree = cKDTree(np.array([G.nodes[n]["xy"] for n in G.nodes]).reshape(-1, 2))
+        self.added = np.zeros((0, 2))
+
+    def update(self) -> None:
+        """Take in the nodes added to ``G`` since the last call (new nodes get the next ids and
+        none are removed while filling)."""
+        new = []
+        while self.top + 1 in self.G:
+            self.top += 1
+            new.append(self.G.nodes[self.top]["xy"])
+        if new:
+            self.added = np.vstack([self.added, new])
+
+    def any_within(self, p: np.ndarray, radius: float) -> bool:
+        """Whether a node lies closer than ``radius`` to ``p`` (exactly as an np.hypot test over
+        all nodes: the tree only picks the candidates, with a margin)."""
+        near = self.tree.query_ball_point(p, radius + 1e-6)
+        pts = np.vstack([self.tree.data[near], self.added])
+        return len(pts) > 0 and bool(np.min(np.hypot(*(pts - p).T)) < radius)
 
 
 def _extended(chord: np.ndarray, by: float) -> LineString:
@@ -71,7 +107,7 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / max(float(np.hypot(*v)), 1e-9)
 
 
-def split_chord(face: Polygon, nodes: np.ndarray, field: TensorField, rng, min_edge, min_angle):
+def split_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rng, min_edge, min_angle):
     """A local road across ``face``: traced both ways from an interior point along the tensor
     axis that cuts the face's long side, clipped where it first leaves the face. A few start
     points and both axes are tried before the block is given up."""
@@ -125,12 +161,12 @@ def _trace_in_face(face: Polygon, start, d, field: TensorField):
     return None
 
 
-def _ends_ok(face: Polygon, nodes: np.ndarray, chord, min_edge: float, min_angle: float) -> bool:
+def _ends_ok(face: Polygon, nodes: _NodePoints, chord, min_edge: float, min_angle: float) -> bool:
     """Both ends meet the block edge at a decent angle and away from existing junctions."""
     if LineString(chord).length < 3 * min_edge:
         return False
     for end, inner in ((chord[0], chord[1]), (chord[-1], chord[-2])):
-        if np.min(np.hypot(*(nodes - end).T)) < 2.5 * min_edge:
+        if nodes.any_within(end, 2.5 * min_edge):
             return False
         ring = face.exterior
         s = ring.project(Point(end))
@@ -143,24 +179,27 @@ def _ends_ok(face: Polygon, nodes: np.ndarray, chord, min_edge: float, min_angle
     return True
 
 
-def insert_chord(G: nx.Graph, chord: np.ndarray, min_edge: float, index: EdgeIndex) -> bool:
+def insert_chord(
+    G: nx.Graph, chord: np.ndarray, min_edge: float, index: EdgeIndex
+) -> tuple | None:
     """Split the road(s) the chord ends on and add the chord as a local road between them.
 
     Refused when the chord touches any road other than those it ends on (a dead-end road
-    inside the block, say), so the graph stays planar without re-noding."""
+    inside the block, say), so the graph stays planar without re-noding. Returns the chord's
+    end nodes, or None when refused."""
     touching = index.near(LineString(chord), 0.5)
     if not 1 <= len(touching) <= 2:
-        return False
+        return None
     nodes = []
     for point in (chord[0], chord[-1]):
         # Look the edge up again for the second end: splitting for the first may have cut it.
         near = index.near(Point(point), 1.0)
         if not near:
-            return False
+            return None
         nodes.append(split_edge_at(G, near[0], point, min_edge, index))
     u, v = nodes
     if u == v:
-        return False
+        return None
     if G.has_edge(u, v):
         # Both ends landed on one road, next to each other: a shape node in the middle of the
         # chord keeps the graph simple (no two roads between the same pair of nodes).
@@ -170,10 +209,10 @@ def insert_chord(G: nx.Graph, chord: np.ndarray, min_edge: float, index: EdgeInd
         for a, b, part in ((u, m, chord[: k + 1]), (m, v, chord[k:])):
             add_road(G, a, b, part, "local")
             index.add(a, b)
-        return True
+        return u, v
     add_road(G, u, v, chord, "local")
     index.add(u, v)
-    return True
+    return u, v
 
 
 def split_edge_at(G: nx.Graph, edge, point, tolerance: float, index: EdgeIndex):
@@ -201,19 +240,40 @@ def split_edge_at(G: nx.Graph, edge, point, tolerance: float, index: EdgeIndex):
 
 
 def prune_to_density(G: nx.Graph, target: int) -> None:
-    """Remove non-bridge local roads, shortest first, while above ``target`` + 1 road nodes."""
-    while road_node_count(G) > target + 1:
-        bridges = set(nx.bridges(G))
-        candidates = sorted(
-            (edge_length(G, u, v), u, v)
-            for u, v in G.edges
-            if G.edges[u, v]["road_class"] != "arterial"
-            and (u, v) not in bridges
-            and (v, u) not in bridges
-            and G.degree(u) >= 3
-            and G.degree(v) >= 3
-        )
-        if not candidates:
+    """Remove non-bridge local roads, shortest first, while above ``target`` + 1 road nodes.
+
+    One pass over the roads sorted once: removing a road only lowers degrees and only turns
+    roads into bridges, so a road that cannot go now never can, and each road is tested with a
+    local search for another path between its ends rather than a bridge search of the graph."""
+    count = road_node_count(G)
+    candidates = sorted(
+        (edge_length(G, u, v), u, v) for u, v in G.edges if G.edges[u, v]["road_class"] != "arterial"
+    )
+    for _, u, v in candidates:
+        if count <= target + 1:
             return
-        _, u, v = candidates[0]
+        if G.degree(u) < 3 or G.degree(v) < 3 or not _on_cycle(G, u, v):
+            continue
         G.remove_edge(u, v)
+        count += sum((G.degree(n) != 2) - (G.degree(n) + 1 != 2) for n in (u, v))
+
+
+def _on_cycle(G: nx.Graph, u, v) -> bool:
+    """Whether u and v stay connected without the road u-v (it is not a bridge): a
+    bidirectional breadth-first search, which stays local around a road on a small cycle."""
+    seen = ({u}, {v})
+    fronts = ([u], [v])
+    while fronts[0] and fronts[1]:
+        side = 0 if len(fronts[0]) <= len(fronts[1]) else 1
+        nxt = []
+        for a in fronts[side]:
+            for b in G.neighbors(a):
+                if {a, b} == {u, v}:
+                    continue
+                if b in seen[1 - side]:
+                    return True
+                if b not in seen[side]:
+                    seen[side].add(b)
+                    nxt.append(b)
+        fronts[side][:] = nxt
+    return False

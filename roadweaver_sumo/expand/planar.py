@@ -35,27 +35,39 @@ def build_planar_graph(roads: list[tuple[np.ndarray, str]], width: float, height
     if not lines_ok:
         return G
     noded = shapely.union_all([ln for ln, _ in lines_ok], grid_size=GRID)
-    pieces = list(getattr(noded, "geoms", [noded]))
+    pieces = np.array(list(getattr(noded, "geoms", [noded])), dtype=object)
+    coords = _coords_of(pieces)
+    lengths = shapely.length(pieces).tolist()
+    order = sorted(range(len(pieces)),
+                   key=lambda k: (tuple(coords[k][0]), tuple(coords[k][-1]), lengths[k]))
+    # One bulk query for the road class of every piece: the best class of the polylines
+    # passing within 5 cm of its middle.
+    mids = shapely.line_interpolate_point(pieces, 0.5, normalized=True)
     tree = shapely.STRtree([ln for ln, _ in lines_ok])
+    which, near = tree.query(mids, predicate="dwithin", distance=0.05)
+    classes = ["local"] * len(pieces)
+    for k, line in zip(which.tolist(), near.tolist(), strict=True):
+        classes[k] = higher_class(classes[k], lines_ok[line][1])
     keys = {}
-    for piece in pieces:
-        for pt in (piece.coords[0], piece.coords[-1]):
+    for c in coords:
+        for pt in (c[0], c[-1]):
             keys.setdefault((round(pt[0], 2), round(pt[1], 2)), None)
     for nid, key in enumerate(sorted(keys)):
         keys[key] = nid
         G.add_node(nid, xy=key)
-    pieces.sort(key=lambda g: (g.coords[0], g.coords[-1], g.length))
-    for piece in pieces:
-        mid = piece.interpolate(0.5, normalized=True)
-        near = tree.query(mid, predicate="dwithin", distance=0.05)
-        cls = "local"
-        for k in sorted(near):
-            cls = higher_class(cls, lines_ok[k][1])
-        c = np.asarray(piece.coords)
+    for k in order:
+        c = coords[k]
         u = keys[(round(c[0][0], 2), round(c[0][1], 2))]
         v = keys[(round(c[-1][0], 2), round(c[-1][1], 2))]
-        add_piece(G, u, v, c, cls)
+        add_piece(G, u, v, np.asarray(c), classes[k])
     return G
+
+
+def _coords_of(lines: np.ndarray) -> list[list]:
+    """The vertices of each line as lists of [x, y] floats, from one shapely call."""
+    xy, owner = shapely.get_coordinates(lines, return_index=True)
+    cuts = np.flatnonzero(np.diff(owner)) + 1
+    return [part.tolist() for part in np.split(xy, cuts)]
 
 
 def add_piece(G: nx.Graph, u: int, v: int, coords: np.ndarray, cls: str) -> None:
@@ -138,25 +150,38 @@ def dissolve_degree_two(G: nx.Graph) -> None:
         add_road(G, a, b, np.vstack([ca, cb[1:]]), cls)
 
 
-def departure_angles(G: nx.Graph, n: int, probe: float = 20.0) -> list[tuple[float, int]]:
-    """(bearing, neighbour) of each road leaving ``n``, measured ``probe`` metres out."""
+def departure_angles(
+    G: nx.Graph, n: int, probe: float = 20.0, cache: dict | None = None
+) -> list[tuple[float, int]]:
+    """(bearing, neighbour) of each road leaving ``n``, measured ``probe`` metres out.
+
+    ``cache`` keeps each bearing with the polyline it was measured on: clean-up asks for the
+    same junctions over and over, and a road whose polyline is replaced is measured again."""
     out = []
     for w in G.neighbors(n):
+        coords = G.edges[n, w]["coords"]
+        hit = cache.get((n, w)) if cache is not None else None
+        if hit is not None and hit[0] is coords:
+            out.append((hit[1], w))
+            continue
         c = edge_coords(G, n, w)
         line = shapely.LineString(c)
         q = line.interpolate(min(probe, line.length * 0.5))
-        out.append((math.atan2(q.y - c[0][1], q.x - c[0][0]), w))
+        bearing = math.atan2(q.y - c[0][1], q.x - c[0][0])
+        if cache is not None:
+            cache[(n, w)] = (coords, bearing)
+        out.append((bearing, w))
     return sorted(out)
 
 
-def remove_sharp_angles(G: nx.Graph, min_angle_deg: float) -> int:
+def remove_sharp_angles(G: nx.Graph, min_angle_deg: float, cache: dict | None = None) -> int:
     """Drop the minor road of every pair meeting at a junction at less than ``min_angle_deg``."""
     removed = 0
     limit = math.radians(min_angle_deg)
     for n in sorted(G.nodes):
         if n not in G or G.degree(n) < 3:
             continue
-        angles = departure_angles(G, n)
+        angles = departure_angles(G, n, cache=cache)
         for k, (a1, w1) in enumerate(angles):
             a2, w2 = angles[(k + 1) % len(angles)]
             gap = (a2 - a1) % (2 * math.pi)
@@ -244,11 +269,12 @@ def smooth_bends(G: nx.Graph, max_turn_deg: float = 30.0, radius: float = 20.0) 
 
 def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: float) -> None:
     """The whole clean-up, repeated until nothing changes."""
+    bearings: dict = {}
     for _ in range(10):
         before = (G.number_of_nodes(), G.number_of_edges())
         merge_close_nodes(G, min_edge * 0.8)
         contract_short_edges(G, min_edge)
-        while remove_sharp_angles(G, min_angle):
+        while remove_sharp_angles(G, min_angle, bearings):
             pass
         prune_stubs(G, stub, margin)
         keep_largest_component(G)
