@@ -51,6 +51,7 @@ class SegmentIndex:
         self.b = np.zeros((256, 2))
         self.road = np.zeros(256, dtype=int)
         self.size = 0
+        self._windows: dict = {}  # cell range -> segments (see window); cleared by add
 
     def add(self, coords: np.ndarray, road_id: int) -> None:
         n = len(coords) - 1
@@ -63,6 +64,7 @@ class SegmentIndex:
         self.b[first : first + n] = coords[1:]
         self.road[first : first + n] = road_id
         self.size += n
+        self._windows.clear()
         lo = np.floor(np.minimum(coords[:-1], coords[1:]) / self.cell).astype(int)
         hi = np.floor(np.maximum(coords[:-1], coords[1:]) / self.cell).astype(int)
         for k in range(n):
@@ -72,13 +74,31 @@ class SegmentIndex:
 
     def near(self, p: np.ndarray, radius: float) -> np.ndarray:
         """Ids of segments that may lie within ``radius`` of ``p`` (a superset)."""
-        x0, y0 = int((p[0] - radius) // self.cell), int((p[1] - radius) // self.cell)
-        x1, y1 = int((p[0] + radius) // self.cell), int((p[1] + radius) // self.cell)
+        return self._ids(self._range(p, radius))
+
+    def _range(self, p, radius: float) -> tuple[int, int, int, int]:
+        x, y = float(p[0]), float(p[1])
+        return (int((x - radius) // self.cell), int((y - radius) // self.cell),
+                int((x + radius) // self.cell), int((y + radius) // self.cell))
+
+    def _ids(self, cells: tuple[int, int, int, int]) -> np.ndarray:
+        x0, y0, x1, y1 = cells
         found: set[int] = set()
         for cx in range(x0, x1 + 1):
             for cy in range(y0, y1 + 1):
                 found.update(self.cells.get((cx, cy), ()))
         return np.array(sorted(found), dtype=int)
+
+    def window(self, p: np.ndarray, radius: float):
+        """:meth:`near` with the segments' ends, road ids and unit directions: a tracer asks
+        for the same cells step after step, so the answer is kept until the next ``add``."""
+        cells = self._range(p, radius)
+        hit = self._windows.get(cells)
+        if hit is None:
+            a, b, road = self.arrays(self._ids(cells))
+            unit = (b - a) / np.maximum(np.hypot(*(b - a).T), 1e-9)[:, None]
+            hit = self._windows[cells] = (a, b, road, unit)
+        return hit
 
     def arrays(self, ids: np.ndarray):
         return self.a[ids], self.b[ids], self.road[ids]
@@ -165,13 +185,11 @@ def trace(
     while True:
         d = next_direction(field, p, d, params, rng)
         reach = params.step + params.snap_radius
-        ids = index.near(p, reach)
-        a, b, road = index.arrays(ids)
+        a, b, road, seg_dir = index.window(p, reach)
         if travelled < ignore_for and len(road):
             keep = ~np.isin(road, list(ignore_roads))
-            a, b = a[keep], b[keep]
+            a, b, seg_dir = a[keep], b[keep], seg_dir[keep]
         if len(a):
-            seg_dir = (b - a) / np.maximum(np.hypot(*(b - a).T), 1e-9)[:, None]
             shallow = np.abs(seg_dir @ d) > min_cos
             side = point_segment_distance(p, a, b)
             if np.any(shallow & (side < params.parallel_gap)) and travelled > 0:

@@ -9,7 +9,6 @@ that is what a reader integrates (the ASAM checker flags mismatches above 1 mm).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,6 +18,7 @@ STRAIGHT = 1e-9  # rad: a vertex turning less than this is no corner (no arc, li
 MIN_LENGTH = 1e-8  # m: shorter pieces are dropped (the XSD wants length > 0)
 
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(16)
+_CHUNK = 256  # curves per quadrature batch
 
 
 @dataclass(frozen=True)
@@ -57,17 +57,21 @@ def fillet_pieces(coords: np.ndarray) -> list[Piece]:
     scale = np.divide(lengths, pair, out=np.full_like(lengths, np.inf), where=pair > 0)
     tangent = np.minimum(scale[:-1], scale[1:]) * weight[1:-1]  # per interior vertex
     cut = np.concatenate([[0.0], tangent, [0.0]])
+    # Every per-segment figure at once (the same operations, in the same order, as one segment
+    # at a time), then plain floats for the loop that strings the pieces together.
+    start = (pts[:-1] + cut[:-1, None] * seg / lengths[:, None]).tolist()
+    run = (lengths - cut[:-1] - cut[1:]).tolist()
+    corner = (pts[1:-1] - cut[1:-1, None] * seg[:-1] / lengths[:-1, None]).tolist()
+    radius = tangent / weight[1:-1]
+    arc_length = (radius * np.abs(turn)).tolist()
+    curvature = np.copysign(1.0 / radius, turn).tolist()
+    heading = heading.tolist()
     pieces: list[Piece] = []
     s = 0.0
     for i in range(len(seg)):
-        start = pts[i] + cut[i] * seg[i] / lengths[i]
-        run = lengths[i] - cut[i] - cut[i + 1]
-        s = _append(pieces, Piece("line", s, *start, heading[i], run))
+        s = _append(pieces, Piece("line", s, *start[i], heading[i], run[i]))
         if i + 1 < len(seg):
-            radius = tangent[i] / weight[i + 1]
-            corner = pts[i + 1] - cut[i + 1] * seg[i] / lengths[i]
-            arc = Piece("arc", s, *corner, heading[i], radius * abs(turn[i]),
-                        curvature=math.copysign(1.0 / radius, turn[i]))
+            arc = Piece("arc", s, *corner[i], heading[i], arc_length[i], curvature=curvature[i])
             s = _append(pieces, arc)
     return pieces
 
@@ -123,7 +127,12 @@ def parampoly3_length(u: np.ndarray, v: np.ndarray, intervals: int = 64) -> np.n
     u, v = np.atleast_2d(u), np.atleast_2d(v)
     half = 0.5 / intervals
     p = ((np.arange(intervals) + 0.5)[:, None] / intervals + half * _GL_NODES[None]).ravel()
-    du = u[:, 1:2] + 2.0 * u[:, 2:3] * p + 3.0 * u[:, 3:4] * p**2
-    dv = v[:, 1:2] + 2.0 * v[:, 2:3] * p + 3.0 * v[:, 3:4] * p**2
-    speed = np.hypot(du, dv).reshape(len(u), intervals, len(_GL_NODES))
-    return half * (speed @ _GL_WEIGHTS).sum(axis=1)
+    p2 = p**2
+    lengths = np.empty(len(u))
+    for k in range(0, len(u), _CHUNK):  # 1000 nodes per curve: a few MB per chunk, in cache
+        uu, vv = u[k:k + _CHUNK], v[k:k + _CHUNK]
+        du = uu[:, 1:2] + 2.0 * uu[:, 2:3] * p + 3.0 * uu[:, 3:4] * p2
+        dv = vv[:, 1:2] + 2.0 * vv[:, 2:3] * p + 3.0 * vv[:, 3:4] * p2
+        speed = np.hypot(du, dv).reshape(len(uu), intervals, len(_GL_NODES))
+        lengths[k:k + _CHUNK] = half * (speed @ _GL_WEIGHTS).sum(axis=1)
+    return lengths
