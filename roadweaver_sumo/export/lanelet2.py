@@ -268,11 +268,13 @@ class _UnionFind:
 
 
 class _Ids:
-    """One id counter for nodes, ways and relations, with the node coordinates."""
+    """One id counter for nodes, ways and relations, with the node coordinates: single nodes
+    (shared way ends, signals) by id, the inner nodes of ways as blocks of consecutive ids."""
 
     def __init__(self) -> None:
         self.next = 1
         self.node_xy: dict[int, tuple[float, float]] = {}
+        self.blocks: list[tuple[int, np.ndarray]] = []  # (first id, points)
 
     def new(self) -> int:
         self.next += 1
@@ -287,8 +289,18 @@ class _Ids:
         """New consecutive node ids for ``points`` (as :meth:`node` one by one, but faster)."""
         first = self.next
         self.next += len(points)
-        self.node_xy.update(zip(range(first, self.next), map(tuple, points.tolist())))
+        self.blocks.append((first, np.array(points, float).reshape(-1, 2)))
         return list(range(first, self.next))
+
+    def all_nodes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every node id in increasing order, and its coordinates."""
+        ids = [np.fromiter(self.node_xy, int, len(self.node_xy))]
+        xy = [np.array(list(self.node_xy.values()), float).reshape(-1, 2)]
+        ids += [np.arange(first, first + len(points)) for first, points in self.blocks]
+        xy += [points for _, points in self.blocks]
+        ids, xy = np.concatenate(ids), np.concatenate(xy)
+        order = np.argsort(ids, kind="stable")
+        return ids[order], xy[order]
 
 
 def _assign_nodes(hd: HDMap, plan: _Plan, ids: _Ids) -> None:
@@ -394,12 +406,13 @@ def _degrees(value: float) -> str:
 
 
 def _add_nodes(root, hd: HDMap, ids: _Ids) -> None:
-    node_ids = sorted(ids.node_xy)
-    xy = np.array([ids.node_xy[n] for n in node_ids])
+    node_ids, xy = ids.all_nodes()
     lat, lon = local_to_latlon(xy[:, 0], xy[:, 1], hd.geo_origin)
-    root.extend([f'<node id="{nid}" visible="true" version="1"'
-                 f' lat="{la:.{DEGREE_DECIMALS}f}" lon="{lo:.{DEGREE_DECIMALS}f}"/>'
-                 for nid, la, lo in zip(node_ids, lat.tolist(), lon.tolist(), strict=True)])
+    # A %-template: half the cost of an f-string with a nested format spec, same digits.
+    line = (f'<node id="%d" visible="true" version="1" lat="%.{DEGREE_DECIMALS}f"'
+            f' lon="%.{DEGREE_DECIMALS}f"/>')
+    root.extend([line % node
+                 for node in zip(node_ids.tolist(), lat.tolist(), lon.tolist(), strict=True)])
 
 
 def _add_bounds(root, hd: HDMap) -> None:
