@@ -151,7 +151,7 @@ def _trace_in_face(face: Polygon, start, d, field: TensorField):
             d = clamp_turn(d, choose_axis(field, p, d), math.radians(8.0))
             p = p + STEP * d
             pts.append(p)
-        path = LineString(pts[first:])
+        path = LineString(np.asarray(pts[first:]))  # an array: no per-point conversion
         hit = path.intersection(boundary)
         if not hit.is_empty:
             along = min(path.project(g) for g in shapely.get_parts(shapely.points(

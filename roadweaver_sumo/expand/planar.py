@@ -29,9 +29,14 @@ def higher_class(a: str, b: str) -> str:
 def build_planar_graph(roads: list[tuple[np.ndarray, str]], width: float, height: float):
     """Node all polylines against each other and build the graph of the pieces."""
     G = new_road_graph(width, height)
-    lines = [shapely.LineString(c) for c, _ in roads if len(c) >= 2]
-    classes = [cls for c, cls in roads if len(c) >= 2]
-    lines_ok = [(ln, cls) for ln, cls in zip(lines, classes) if ln.length > GRID]
+    kept = [(np.asarray(c, float).reshape(-1, 2), cls) for c, cls in roads if len(c) >= 2]
+    if not kept:
+        return G
+    sizes = [len(c) for c, _ in kept]
+    lines = shapely.linestrings(np.concatenate([c for c, _ in kept]),
+                                indices=np.repeat(np.arange(len(kept)), sizes))  # one call
+    lines_ok = [(ln, cls) for ln, length, (_, cls) in zip(
+        lines.tolist(), shapely.length(lines).tolist(), kept, strict=True) if length > GRID]
     if not lines_ok:
         return G
     noded = shapely.union_all([ln for ln, _ in lines_ok], grid_size=GRID)
