@@ -10,6 +10,7 @@ import argparse
 import json
 import sys
 import time
+import warnings
 from pathlib import Path
 
 from . import __version__
@@ -100,7 +101,12 @@ def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:
     render.add_argument("dirs", type=Path, nargs="+", metavar="DIR")
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"{PROG}: warning: {message}", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
+    warnings.showwarning = _one_line_warning
     try:
         args = build_parser().parse_args(argv)
         if args.command == "make-scenario":

@@ -14,7 +14,8 @@ from roadweaver_sumo.spec import ScenarioSpec
 
 
 def generate(**kw):
-    spec = ScenarioSpec(vehicles=1, **kw)
+    """The procedural skeleton + expansion (the learned one has its own tests)."""
+    spec = ScenarioSpec(vehicles=1, **{"skeleton": "procedural", **kw})
     return spec, expand_skeleton(spec, make_skeleton(spec))
 
 

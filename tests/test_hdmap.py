@@ -256,7 +256,7 @@ def test_generated_lane_ends_point_the_driving_way():
     from roadweaver_sumo.skeleton import make_skeleton
     from roadweaver_sumo.spec import ScenarioSpec
 
-    spec = ScenarioSpec(density=60, vehicles=1, style="radial", seed=3)
+    spec = ScenarioSpec(density=60, vehicles=1, style="radial", seed=3, skeleton="procedural")
     hd = build_hdmap(expand_skeleton(spec, make_skeleton(spec)), spec.geo_origin)
     for lane in hd.road_lanes():
         c = LineString(lane.centre)

@@ -24,7 +24,8 @@ from roadweaver_sumo.validate.lanelet2_check import (
     osm_lane_relations,
 )
 
-SPEC = ScenarioSpec(density=30, vehicles=1, width=1000, height=1000, style="organic", seed=0)
+SPEC = ScenarioSpec(density=30, vehicles=1, width=1000, height=1000, style="organic", seed=0,
+                    skeleton="procedural")
 
 
 def _hdmap():

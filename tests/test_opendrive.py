@@ -44,7 +44,8 @@ def town() -> nx.Graph:
 
 
 def generated() -> nx.Graph:
-    spec = ScenarioSpec(density=30, vehicles=1, width=600, height=600, style="organic", seed=0)
+    spec = ScenarioSpec(density=30, vehicles=1, width=600, height=600, style="organic", seed=0,
+                        skeleton="procedural")
     return expand_skeleton(spec, make_skeleton(spec))
 
 

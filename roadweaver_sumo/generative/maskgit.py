@@ -110,10 +110,13 @@ class MaskGIT(nn.Module):
         masked = ~fixed
         drop_all = torch.ones(B, dtype=torch.bool)
         for t in range(steps):
-            logits = self(tokens, masked, cond)
-            if guidance > 0:
-                uncond = self(tokens, masked, cond, drop_all)
+            if guidance > 0:  # conditional and unconditional rows in one batch
+                both = self(tokens.repeat(2, 1, 1), masked.repeat(2, 1), cond.repeat(2, 1),
+                            torch.cat([~drop_all, drop_all]))
+                logits, uncond = both[:B], both[B:]
                 logits = logits + guidance * (logits - uncond)
+            else:
+                logits = self(tokens, masked, cond)
             logp = F.log_softmax(logits / max(temperature, 1e-4), dim=-1)
             gumbel = -torch.log(-torch.log(
                 torch.rand(logp.shape, generator=generator).clamp_(1e-9, 1 - 1e-9)))

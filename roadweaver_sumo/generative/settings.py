@@ -23,9 +23,9 @@ class VQVAEConfig:
 
 @dataclass(frozen=True)
 class MaskGITConfig:
-    dim: int = 192
+    dim: int = 128
     depth: int = 6
-    heads: int = 6
+    heads: int = 4
     codebook_size: int = 512
     groups: int = 2
     grid: int = 16
@@ -49,4 +49,4 @@ class TrainSettings:
 VQVAE_CONFIG = VQVAEConfig()
 MASKGIT_CONFIG = MaskGITConfig()
 VQVAE_SETTINGS = TrainSettings(steps=1200, batch=16, lr=1e-3, crop=64, eval_every=100)
-MASKGIT_SETTINGS = TrainSettings(steps=3000, batch=32, lr=1e-3, eval_every=250)
+MASKGIT_SETTINGS = TrainSettings(steps=600, batch=32, lr=1e-3, eval_every=100)

@@ -58,7 +58,7 @@ def learned_skeleton(spec: ScenarioSpec, generator=None) -> Skeleton:
     c, scale = condition_for(spec)
     seed = int(spec.rng(STAGE_SKELETON).integers(2**31))
     F, res = sample_field(gen, c, spec.width, spec.height, seed, scale=scale)
-    graph = field_to_graph(F, F.shape[1] * res)
+    graph = field_to_graph(F, F.shape[1] * res, threshold=gen.road_threshold)
     lines, classes = _clipped_roads(graph, spec.width, spec.height)
     return Skeleton(
         polylines=lines,
@@ -67,6 +67,8 @@ def learned_skeleton(spec: ScenarioSpec, generator=None) -> Skeleton:
         road_prob=_resample(F[..., 0], res, spec.width, spec.height),
         res=FIELD_RES,
         classes=classes,
+        provenance={"generator": "learned", "attribution": gen.meta.get("attribution", ""),
+                    "condition": [round(float(v), 4) for v in c], "window_scale": scale},
     )
 
 

@@ -27,6 +27,8 @@ class Skeleton:
     road_prob: np.ndarray
     res: float
     classes: list[str] = field(default_factory=list)
+    #: which generator made it and, for the learned one, the data attribution it carries
+    provenance: dict = field(default_factory=lambda: {"generator": "procedural"})
 
     def road_classes(self) -> list[str]:
         """Class per polyline; a generator that gives none makes every skeleton road arterial."""

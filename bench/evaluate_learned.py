@@ -1,0 +1,230 @@
+"""Does the learned skeleton do what issue 4 asks? Four measurements, one command.
+
+Usage: python bench/evaluate_learned.py [--osm-dir ../shared/data/osm] [--seeds 0-9]
+           [--parts condition,density,realism,seams] [--json bench/results/learned.json]
+
+* condition: --style grid vs organic at density 30, 2 km, per seed: orientation order φ and
+  bearing entropy H of the generated road graph (learned skeleton + expansion).
+* density: relative error of the road-node density for targets 10..60 (style mixed).
+* realism: distance to real 2 km tiles (unrotated crops of the OSM extracts, road-node density
+  40..80) of learned and procedural maps at density 60: degree mix (L1 between mean shares of
+  degree 1/3/4/5+ road nodes), dead-end share, bearing entropy (difference of means) and edge
+  length distribution (1-D Wasserstein distance, metres).
+* seams: a 6 km x 6 km learned map; road length and road-node density per 500 m band along x
+  and y, and the jump between neighbouring bands at sampling-window borders vs elsewhere.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import wasserstein_distance
+
+from roadweaver_sumo import metrics
+from roadweaver_sumo.expand import expand_skeleton
+from roadweaver_sumo.roadgraph import edge_length
+from roadweaver_sumo.skeleton import make_skeleton
+from roadweaver_sumo.spec import ScenarioSpec
+
+DEGREE_BINS = ((1, 1), (3, 3), (4, 4), (5, 99))
+
+
+def seeds_arg(text: str) -> list[int]:
+    if "-" in text:
+        lo, hi = text.split("-")
+        return list(range(int(lo), int(hi) + 1))
+    return [int(s) for s in text.split(",")]
+
+
+def road_graph(spec: ScenarioSpec):
+    return expand_skeleton(spec, make_skeleton(spec))
+
+
+def skeleton_only(spec: ScenarioSpec):
+    """The skeleton's own polylines as a graph (for φ and H before any expansion)."""
+    from roadweaver_sumo.roadgraph import add_road, new_road_graph
+
+    sk = make_skeleton(spec)
+    G = new_road_graph(spec.width, spec.height)
+    for k, line in enumerate(sk.polylines):
+        G.add_node(2 * k, xy=tuple(line[0]))
+        G.add_node(2 * k + 1, xy=tuple(line[-1]))
+        add_road(G, 2 * k, 2 * k + 1, line, "arterial")
+    return G
+
+
+def shape_figures(G) -> dict:
+    deg = [d for _, d in G.degree() if d != 2]
+    n = max(len(deg), 1)
+    return {
+        "degree_mix": [sum(lo <= d <= hi for d in deg) / n for lo, hi in DEGREE_BINS],
+        "dead_end": metrics.dead_end_ratio(G),
+        "H": metrics.bearing_entropy(G),
+        "phi": metrics.orientation_order(G),
+        "edge_lengths": [edge_length(G, u, v) for u, v in G.edges],
+    }
+
+
+def part_condition(seeds):
+    out = {}
+    for style in ("grid", "organic"):
+        rows = []
+        for seed in seeds:
+            spec = ScenarioSpec(density=30, vehicles=10, seed=seed, style=style)
+            G, S = road_graph(spec), skeleton_only(spec)
+            rows.append({"seed": seed, "phi": metrics.orientation_order(G),
+                         "H": metrics.bearing_entropy(G),
+                         "skeleton_phi": metrics.orientation_order(S),
+                         "skeleton_H": metrics.bearing_entropy(S)})
+            print(f"condition {style} seed {seed}: map phi {rows[-1]['phi']:.3f} "
+                  f"H {rows[-1]['H']:.3f}; skeleton alone phi {rows[-1]['skeleton_phi']:.3f} "
+                  f"H {rows[-1]['skeleton_H']:.3f}", flush=True)
+        out[style] = rows
+    for style, rows in out.items():
+        for prefix in ("", "skeleton_"):
+            phis, hs = [r[prefix + "phi"] for r in rows], [r[prefix + "H"] for r in rows]
+            print(f"{style:8s} {prefix or 'map_'}phi mean {statistics.mean(phis):.3f} "
+                  f"[{min(phis):.3f}, {max(phis):.3f}]  H mean {statistics.mean(hs):.3f} "
+                  f"[{min(hs):.3f}, {max(hs):.3f}]")
+    return out
+
+
+def part_density(seeds):
+    rows = []
+    for density in (10, 20, 30, 40, 60):
+        for seed in seeds[:3]:
+            spec = ScenarioSpec(density=density, vehicles=10, seed=seed)
+            G = road_graph(spec)
+            measured = metrics.density(G, spec.area_km2)
+            rows.append({"density": density, "seed": seed, "measured": measured,
+                         "error": abs(measured - density) / density})
+            print(f"density {density} seed {seed}: {measured:.2f} "
+                  f"({100 * rows[-1]['error']:.1f} %)", flush=True)
+    print(f"density error max {max(r['error'] for r in rows):.3f}")
+    return rows
+
+
+def real_tiles(osm_dir: Path, lo: float = 40.0, hi: float = 80.0):
+    from roadweaver_sumo.data import iter_tiles, read_osm
+
+    graphs = []
+    for path in sorted(osm_dir.iterdir()):
+        G = read_osm(path)
+        for tile in iter_tiles(G, 2000.0, rotations=(0,), shifts=(0.0,)):
+            d = metrics.density(tile.base, 4.0)
+            if lo <= d <= hi:
+                graphs.append(tile.base)
+    return graphs
+
+
+def summarise(figs: list[dict]) -> dict:
+    return {"degree_mix": np.mean([f["degree_mix"] for f in figs], axis=0).tolist(),
+            "dead_end": statistics.mean(f["dead_end"] for f in figs),
+            "H": statistics.mean(f["H"] for f in figs),
+            "edge_lengths": [x for f in figs for x in f["edge_lengths"]]}
+
+
+def distance(a: dict, b: dict) -> dict:
+    return {"degree_mix_l1": float(np.abs(np.subtract(a["degree_mix"], b["degree_mix"])).sum()),
+            "dead_end": abs(a["dead_end"] - b["dead_end"]), "H": abs(a["H"] - b["H"]),
+            "edge_length_w1_m": wasserstein_distance(a["edge_lengths"], b["edge_lengths"])}
+
+
+def real_summary(osm_dir: Path, cache: Path) -> dict:
+    """Figures of the real tiles (cached: reading and cutting every extract takes minutes)."""
+    if cache.is_file():
+        return json.loads(cache.read_text())
+    tiles = real_tiles(osm_dir)
+    real = summarise([shape_figures(G) for G in tiles])
+    real["tiles"] = len(tiles)
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    cache.write_text(json.dumps(real))
+    return real
+
+
+def part_realism(seeds, osm_dir: Path, cache: Path = Path("bench/results/real_tiles.json")):
+    real = real_summary(osm_dir, cache)
+    out = {"real": {k: v for k, v in real.items() if k != "edge_lengths"}}
+    for skeleton in ("learned", "procedural"):
+        figs = [shape_figures(road_graph(ScenarioSpec(density=60, vehicles=10, seed=s,
+                                                      skeleton=skeleton)))
+                for s in seeds]
+        mine = summarise(figs)
+        out[skeleton] = {"figures": {k: v for k, v in mine.items() if k != "edge_lengths"},
+                         "distance_to_real": distance(mine, real)}
+        print(f"{skeleton:10s} distance to real tiles: {out[skeleton]['distance_to_real']}")
+    print(f"real tiles: {out['real']}")
+    return out
+
+
+def band_profile(G, size: float, band: float, axis: int):
+    """Road length (km per km²) and road nodes per km² in each band along ``axis``."""
+    n = int(size // band)
+    length, nodes = np.zeros(n), np.zeros(n)
+    for u, v, data in G.edges(data=True):
+        c = np.asarray(data["coords"])
+        mids, seg = 0.5 * (c[1:] + c[:-1]), np.hypot(*np.diff(c, axis=0).T)
+        np.add.at(length, np.clip((mids[:, axis] // band).astype(int), 0, n - 1), seg)
+    for node, d in G.degree():
+        if d != 2:
+            nodes[min(int(G.nodes[node]["xy"][axis] // band), n - 1)] += 1
+    area = band * size / 1e6
+    return length / 1000 / area, nodes / area
+
+
+def part_seams(size: float = 6000.0, band: float = 500.0, window_m: float = 1000.0):
+    spec = ScenarioSpec(density=30, vehicles=10, width=size, height=size, seed=0)
+    start = time.perf_counter()
+    sk = make_skeleton(spec)
+    G = expand_skeleton(spec, sk)
+    out = {"seconds": time.perf_counter() - start}
+    # window borders of the token canvas (stride half a 2 km window) fall on multiples of 1 km
+    for axis, name in ((0, "x"), (1, "y")):
+        length, nodes = band_profile(G, size, band, axis)
+        edges = np.arange(1, len(length)) * band  # boundaries between neighbouring bands
+        at_border = np.isclose(edges % window_m, 0.0)
+        jumps_len, jumps_nodes = np.abs(np.diff(length)), np.abs(np.diff(nodes))
+        out[name] = {"road_km_per_km2": length.round(2).tolist(),
+                     "nodes_per_km2": nodes.round(1).tolist(),
+                     "jump_at_window_borders": {"length": float(jumps_len[at_border].mean()),
+                                                "nodes": float(jumps_nodes[at_border].mean())},
+                     "jump_elsewhere": {"length": float(jumps_len[~at_border].mean()),
+                                        "nodes": float(jumps_nodes[~at_border].mean())}}
+        print(f"seams {name}: road km/km² per band {out[name]['road_km_per_km2']}")
+        print(f"seams {name}: nodes/km² per band {out[name]['nodes_per_km2']}")
+        print(f"seams {name}: mean jump at window borders {out[name]['jump_at_window_borders']}"
+              f", elsewhere {out[name]['jump_elsewhere']}")
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--osm-dir", type=Path, default=Path("../shared/data/osm"))
+    ap.add_argument("--seeds", default="0-9")
+    ap.add_argument("--parts", default="condition,density,realism,seams")
+    ap.add_argument("--json", type=Path, default=Path("bench/results/learned.json"))
+    args = ap.parse_args()
+    seeds = seeds_arg(args.seeds)
+    results = {}
+    for part in args.parts.split(","):
+        start = time.perf_counter()
+        if part == "condition":
+            results[part] = part_condition(seeds)
+        elif part == "density":
+            results[part] = part_density(seeds)
+        elif part == "realism":
+            results[part] = part_realism(seeds, args.osm_dir)
+        elif part == "seams":
+            results[part] = part_seams()
+        print(f"[{part}: {time.perf_counter() - start:.0f} s]", flush=True)
+    args.json.parent.mkdir(parents=True, exist_ok=True)
+    args.json.write_text(json.dumps(results, indent=1))
+
+
+if __name__ == "__main__":
+    main()
