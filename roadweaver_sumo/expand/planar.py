@@ -35,24 +35,27 @@ def build_planar_graph(roads: list[tuple[np.ndarray, str]], width: float, height
     sizes = [len(c) for c, _ in kept]
     lines = shapely.linestrings(np.concatenate([c for c, _ in kept]),
                                 indices=np.repeat(np.arange(len(kept)), sizes))  # one call
-    lines_ok = [(ln, cls) for ln, length, (_, cls) in zip(
-        lines.tolist(), shapely.length(lines).tolist(), kept, strict=True) if length > GRID]
-    if not lines_ok:
+    kept = [(c, cls, ln) for (c, cls), ln, length in zip(
+        kept, lines.tolist(), shapely.length(lines).tolist(), strict=True) if length > GRID]
+    if not kept:
         return G
-    noded = shapely.union_all([ln for ln, _ in lines_ok], grid_size=GRID)
+    noded = shapely.union_all([ln for _, _, ln in kept], grid_size=GRID)
     pieces = np.array(list(getattr(noded, "geoms", [noded])), dtype=object)
     coords = _coords_of(pieces)
     lengths = shapely.length(pieces).tolist()
     order = sorted(range(len(pieces)),
                    key=lambda k: (tuple(coords[k][0]), tuple(coords[k][-1]), lengths[k]))
-    # One bulk query for the road class of every piece: the best class of the polylines
-    # passing within 5 cm of its middle.
+    # The road class of every piece: the best class of the polylines passing within 5 cm of
+    # its middle, from one bulk query against their segments (a tree of whole polylines would
+    # measure every piece against each map-long arterial, vertex by vertex).
     mids = shapely.line_interpolate_point(pieces, 0.5, normalized=True)
-    tree = shapely.STRtree([ln for ln, _ in lines_ok])
-    which, near = tree.query(mids, predicate="dwithin", distance=0.05)
+    segments = shapely.linestrings(np.concatenate(
+        [np.stack([c[:-1], c[1:]], axis=1) for c, _, _ in kept]))
+    owner = np.repeat(np.arange(len(kept)), [len(c) - 1 for c, _, _ in kept])
+    which, near = shapely.STRtree(segments).query(mids, predicate="dwithin", distance=0.05)
     classes = ["local"] * len(pieces)
-    for k, line in zip(which.tolist(), near.tolist(), strict=True):
-        classes[k] = higher_class(classes[k], lines_ok[line][1])
+    for k, line in zip(which.tolist(), owner[near].tolist(), strict=True):
+        classes[k] = higher_class(classes[k], kept[line][1])
     keys = {}
     for c in coords:
         for pt in (c[0], c[-1]):
