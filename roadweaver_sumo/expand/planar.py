@@ -269,10 +269,35 @@ def round_corners(coords: np.ndarray, max_turn_deg: float, radius: float) -> np.
 
 
 def smooth_bends(G: nx.Graph, max_turn_deg: float = 30.0, radius: float = 20.0) -> None:
-    """Round the sharp bends of every road (perimeter corners, joins at dissolved nodes)."""
-    for u, v in G.edges:
-        data = G.edges[u, v]
+    """Round the sharp bends of every road (perimeter corners, joins at dissolved nodes).
+
+    Most roads are smooth already (clean-up runs several times): one vectorised pass finds the
+    roads that clearly have no repeated point and no sharp bend, which :func:`round_corners`
+    would return unchanged; the others, and any near those limits, go through it."""
+    edges = list(G.edges)
+    if not edges:
+        return
+    for k in np.flatnonzero(_maybe_sharp(edges, G, max_turn_deg)):
+        data = G.edges[edges[k]]
         data["coords"] = round_corners(data["coords"], max_turn_deg, radius)
+
+
+def _maybe_sharp(edges: list, G: nx.Graph, max_turn_deg: float) -> np.ndarray:
+    """Per road, whether it may have a step of 1e-6 m or less or a vertex turning more than
+    ``max_turn_deg`` (with margins, so that rounding can only add roads, never miss one)."""
+    coords = [G.edges[e]["coords"] for e in edges]
+    owner = np.repeat(np.arange(len(coords)), [len(c) for c in coords])
+    step = np.diff(np.concatenate(coords), axis=0)
+    inside = owner[1:] == owner[:-1]  # steps between two roads are not steps
+    step, step_owner = step[inside], owner[1:][inside]
+    short = np.hypot(step[:, 0], step[:, 1]) <= 2e-6
+    heading = np.arctan2(step[:, 1], step[:, 0])
+    pair = step_owner[1:] == step_owner[:-1]
+    turn = np.abs((np.diff(heading) + np.pi) % (2 * np.pi) - np.pi)
+    sharp = pair & (turn > math.radians(max_turn_deg) - 1e-6)
+    n = len(coords)
+    return (np.bincount(step_owner[short], minlength=n)
+            + np.bincount(step_owner[1:][sharp], minlength=n)) > 0
 
 
 def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: float) -> None:
