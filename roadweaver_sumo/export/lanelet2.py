@@ -250,18 +250,19 @@ def _end_point(plan: _Plan, lane_id: str, side: str, at_end: bool) -> tuple:
 
 
 class _UnionFind:
-    def __init__(self) -> None:
-        self.parent: dict = {}
+    """Union-find over the integers ``0..n-1`` (way end points: ``2 * way + end``)."""
 
-    def find(self, item):
-        root = item
-        while self.parent.get(root, root) != root:
-            root = self.parent[root]
-        while item != root:  # path compression
-            self.parent[item], item = root, self.parent.get(item, item)
-        return root
+    def __init__(self, n: int) -> None:
+        self.parent = list(range(n))
 
-    def union(self, a, b) -> None:
+    def find(self, item: int) -> int:
+        parent = self.parent
+        while parent[item] != item:
+            parent[item] = parent[parent[item]]  # path halving
+            item = parent[item]
+        return item
+
+    def union(self, a: int, b: int) -> None:
         ra, rb = self.find(a), self.find(b)
         if ra != rb:
             self.parent[rb] = ra
@@ -306,24 +307,25 @@ class _Ids:
 def _assign_nodes(hd: HDMap, plan: _Plan, ids: _Ids) -> None:
     """Give every way its node ids; end points joined by a successor link share one node, placed
     where the first way (road lanes come first) has it."""
-    joints = _UnionFind()
+    way_index = {key: k for k, key in enumerate(plan.ways)}
+    slot = {lane_side: way_index[key] for lane_side, key in plan.slots.items()}
+    joints = _UnionFind(2 * len(way_index))
     for lane in _lane_order(hd):
         for succ in lane.successors:
-            for side in ("left", "right"):
-                joints.union(_end_point(plan, lane.id, side, True),
-                             _end_point(plan, succ, side, False))
+            for side in ("left", "right"):  # the end of this lane's way, the start of succ's
+                joints.union(2 * slot[(lane.id, side)] + 1, 2 * slot[(succ, side)])
     shared: dict = {}
 
-    def end_node(key, end: int, xy) -> int:
-        root = joints.find((key, end))
+    def end_node(point: int, xy) -> int:
+        root = joints.find(point)
         if root not in shared:
             shared[root] = ids.node(xy)
         return shared[root]
 
-    for key, way in plan.ways.items():
-        first = end_node(key, 0, way.points[0])
+    for k, way in enumerate(plan.ways.values()):
+        first = end_node(2 * k, way.points[0])
         inner = ids.nodes(way.points[1:-1])
-        way.nodes = [first, *inner, end_node(key, 1, way.points[-1])]
+        way.nodes = [first, *inner, end_node(2 * k + 1, way.points[-1])]
 
 
 def _lane_end_node(plan: _Plan, lane_id: str, side: str) -> int:
