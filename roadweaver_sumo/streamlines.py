@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -96,12 +97,25 @@ class SegmentIndex:
         hit = self._windows.get(cells)
         if hit is None:
             a, b, road = self.arrays(self._ids(cells))
-            unit = (b - a) / np.maximum(np.hypot(*(b - a).T), 1e-9)[:, None]
-            hit = self._windows[cells] = (a, b, road, unit)
+            edge = b - a
+            unit = edge / np.maximum(np.hypot(*edge.T), 1e-9)[:, None]
+            sq = np.einsum("ij,ij->i", edge, edge)
+            hit = self._windows[cells] = _Window(a, road, unit, edge, np.where(sq > 0, sq, 1.0))
         return hit
 
     def arrays(self, ids: np.ndarray):
         return self.a[ids], self.b[ids], self.road[ids]
+
+
+class _Window(NamedTuple):
+    """Segments near a point: start ``a``, road id, unit direction, ``edge = b - a`` and its
+    squared length (1 for zero-length segments: the projection divisor)."""
+
+    a: np.ndarray
+    road: np.ndarray
+    unit: np.ndarray
+    edge: np.ndarray
+    edge_sq: np.ndarray
 
 
 def choose_axis(field: TensorField, p: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -131,20 +145,21 @@ def rotate(v: np.ndarray, ang: float) -> np.ndarray:
 
 
 def next_direction(field, p, d, params: GrowthParams, rng: np.random.Generator) -> np.ndarray:
-    """Eq. (4) then the style perturbation Δφ."""
-    a = choose_axis(field, p, d)
-    blend = params.w_tensor * a + params.w_inertia * d
-    norm = np.hypot(*blend)
-    cand = blend / norm if norm > 1e-9 else d
+    """Eq. (4) then the style perturbation Δφ (on plain floats: the tracer's inner loop; the
+    same operations as on 2-vectors)."""
+    ax, ay = choose_axis(field, p, d).tolist()
+    dx, dy = float(d[0]), float(d[1])
+    bx, by = params.w_tensor * ax + params.w_inertia * dx, params.w_tensor * ay + params.w_inertia * dy
+    norm = np.hypot(bx, by)
+    cand = (bx / norm, by / norm) if norm > 1e-9 else d
     cand = clamp_turn(d, cand, math.radians(params.max_turn))
     if params.jitter > 0:
         cand = rotate(cand, math.radians(rng.normal(0.0, params.jitter)))
     return cand
 
 
-def _ray_hits(p, d, reach, a, b):
-    """Distances along the ray p + t d (0 < t <= reach) to segments a-b, inf where none."""
-    e = b - a
+def _ray_hits(p, d, reach, a, e):
+    """Distances along the ray p + t d (0 < t <= reach) to segments a-(a + e), inf where none."""
     denom = d[0] * e[:, 1] - d[1] * e[:, 0]
     w = a - p
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -157,7 +172,11 @@ def _ray_hits(p, d, reach, a, b):
 def point_segment_distance(p, a, b):
     e = b - a
     ll = np.einsum("ij,ij->i", e, e)
-    t = np.clip(np.einsum("ij,ij->i", p - a, e) / np.where(ll > 0, ll, 1.0), 0, 1)
+    return _segment_distance(p, a, e, np.where(ll > 0, ll, 1.0))
+
+
+def _segment_distance(p, a, e, edge_sq):
+    t = np.clip(np.einsum("ij,ij->i", p - a, e) / edge_sq, 0, 1)
     proj = a + t[:, None] * e
     return np.hypot(*(p - proj).T)
 
@@ -185,16 +204,16 @@ def trace(
     while True:
         d = next_direction(field, p, d, params, rng)
         reach = params.step + params.snap_radius
-        a, b, road, seg_dir = index.window(p, reach)
-        if travelled < ignore_for and len(road):
-            keep = ~np.isin(road, list(ignore_roads))
-            a, b, seg_dir = a[keep], b[keep], seg_dir[keep]
-        if len(a):
-            shallow = np.abs(seg_dir @ d) > min_cos
-            side = point_segment_distance(p, a, b)
+        near = index.window(p, reach)
+        if travelled < ignore_for and len(near.road):
+            keep = ~np.isin(near.road, list(ignore_roads))
+            near = _Window(*(column[keep] for column in near))
+        if len(near.a):
+            shallow = np.abs(near.unit @ d) > min_cos
+            side = _segment_distance(p, near.a, near.edge, near.edge_sq)
             if np.any(shallow & (side < params.parallel_gap)) and travelled > 0:
                 return Trace(np.array(pts), "blocked")
-            hits = _ray_hits(p, d, reach, a, b)
+            hits = _ray_hits(p, d, reach, near.a, near.edge)
             k = int(np.argmin(hits))
             if np.isfinite(hits[k]) and not params.pass_through:
                 if shallow[k]:
