@@ -384,7 +384,17 @@ def _add_tags(element, tags) -> None:
 @functools.lru_cache(maxsize=64)
 def _tag_lines(tags: tuple) -> list[str]:
     """``<tag>`` texts of a tags tuple; way tags repeat thousands of times."""
-    return [leaf("tag", attr_text((("k", key), ("v", value)))) for key, value in tags]
+    return [_tag_line(key, value) for key, value in tags]
+
+
+@functools.lru_cache(maxsize=4096)
+def _tag_line(key: str, value: str) -> str:
+    """One ``<tag>`` text, cached: lanelet tags other than the lane id take few values."""
+    return _uncached_tag_line(key, value)
+
+
+def _uncached_tag_line(key: str, value: str) -> str:
+    return leaf("tag", attr_text((("k", key), ("v", value))))
 
 
 def _add_way(root, wid: int, nodes: list[int], tags) -> None:
@@ -397,8 +407,9 @@ def _add_relation(root, rid: int, members: list[tuple[str, int, str]], tags) -> 
     relation = _element(root, "relation", rid)
     relation.extend([f'<member type="{kind}" ref="{ref}" role="{role}"/>'  # plain words: no escaping
                      for kind, ref, role in members])
-    if tags and tags[0] == ("type", "lanelet"):  # unique per lane: not worth caching
-        relation.extend([leaf("tag", attr_text((("k", key), ("v", value)))) for key, value in tags])
+    if tags and tags[0] == ("type", "lanelet"):  # tags that repeat, then the lane's own id
+        relation.extend([_tag_line(key, value) for key, value in tags[:-1]])
+        relation.append(_uncached_tag_line(*tags[-1]))
     else:
         _add_tags(relation, tags)
 
