@@ -143,14 +143,15 @@ def _trace_in_face(face: Polygon, start, d, field: TensorField):
     The path is traced in growing chunks and intersected with the boundary once per chunk (a
     shapely call per Euler step would dominate the run time)."""
     boundary = face.exterior
-    pts = [np.asarray(start, float)]
-    p, d = pts[0], np.asarray(d, float)
+    x, y = float(start[0]), float(start[1])  # plain floats in the step loop: no 2-vectors
+    pts = [(x, y)]
+    d = np.asarray(d, float)
     for chunk in (4, 8, 16, 32, 64, 128):
         first = len(pts) - 1
         for _ in range(chunk):
-            d = clamp_turn(d, choose_axis(field, p, d), math.radians(8.0))
-            p = p + STEP * d
-            pts.append(p)
+            d = clamp_turn(d, choose_axis(field, (x, y), d), math.radians(8.0))
+            x, y = x + STEP * float(d[0]), y + STEP * float(d[1])
+            pts.append((x, y))
         path = LineString(np.asarray(pts[first:]))  # an array: no per-point conversion
         hit = path.intersection(boundary)
         if not hit.is_empty:
