@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .expand import expand_skeleton
-from .export.background import in_background
 from .export.lanelet2 import write_lanelet2
 from .export.netconvert import run_netconvert
 from .export.opendrive import write_opendrive
@@ -98,9 +97,9 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
     with stage("hdmap"):
         hdmap = build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights)
     with stage("export"):
-        with in_background(write_lanelet2, hdmap, folder / "map.osm"):  # on a spare core
-            write_plain(hdmap, folder / "plain")
-            write_opendrive(hdmap, folder / "map.xodr")
+        write_plain(hdmap, folder / "plain")
+        write_opendrive(hdmap, folder / "map.xodr")
+        write_lanelet2(hdmap, folder / "map.osm")
         (folder / SPEC_FILE).write_text(spec.to_json(), encoding="utf-8")
     with stage("netconvert"):
         run_netconvert(folder, spec.netconvert_template)
