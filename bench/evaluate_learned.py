@@ -26,6 +26,7 @@ import numpy as np
 from scipy.stats import wasserstein_distance
 
 from roadweaver_sumo import metrics
+from roadweaver_sumo.errors import RoadweaverError
 from roadweaver_sumo.expand import expand_skeleton
 from roadweaver_sumo.roadgraph import edge_length
 from roadweaver_sumo.skeleton import make_skeleton
@@ -75,8 +76,13 @@ def part_condition(seeds):
     for style in ("grid", "organic"):
         rows = []
         for seed in seeds:
-            spec = ScenarioSpec(density=30, vehicles=10, seed=seed, style=style)
-            G, S = road_graph(spec), skeleton_only(spec)
+            spec = ScenarioSpec(density=30, vehicles=10, seed=seed, style=style, skeleton="learned")
+            try:
+                G, S = road_graph(spec), skeleton_only(spec)
+            except RoadweaverError as exc:  # a failed map is a result too
+                rows.append({"seed": seed, "error": str(exc)})
+                print(f"condition {style} seed {seed}: ERROR {exc}", flush=True)
+                continue
             rows.append({"seed": seed, "phi": metrics.orientation_order(G),
                          "H": metrics.bearing_entropy(G),
                          "skeleton_phi": metrics.orientation_order(S),
@@ -86,8 +92,10 @@ def part_condition(seeds):
                   f"H {rows[-1]['skeleton_H']:.3f}", flush=True)
         out[style] = rows
     for style, rows in out.items():
+        ok = [r for r in rows if "error" not in r]
+        print(f"{style}: {len(rows) - len(ok)} of {len(rows)} seeds failed")
         for prefix in ("", "skeleton_"):
-            phis, hs = [r[prefix + "phi"] for r in rows], [r[prefix + "H"] for r in rows]
+            phis, hs = [r[prefix + "phi"] for r in ok], [r[prefix + "H"] for r in ok]
             print(f"{style:8s} {prefix or 'map_'}phi mean {statistics.mean(phis):.3f} "
                   f"[{min(phis):.3f}, {max(phis):.3f}]  H mean {statistics.mean(hs):.3f} "
                   f"[{min(hs):.3f}, {max(hs):.3f}]")
@@ -98,14 +106,21 @@ def part_density(seeds):
     rows = []
     for density in (10, 20, 30, 40, 60):
         for seed in seeds[:3]:
-            spec = ScenarioSpec(density=density, vehicles=10, seed=seed)
-            G = road_graph(spec)
+            spec = ScenarioSpec(density=density, vehicles=10, seed=seed, skeleton="learned")
+            try:
+                G = road_graph(spec)
+            except RoadweaverError as exc:
+                rows.append({"density": density, "seed": seed, "error": str(exc)})
+                print(f"density {density} seed {seed}: ERROR {exc}", flush=True)
+                continue
             measured = metrics.density(G, spec.area_km2)
             rows.append({"density": density, "seed": seed, "measured": measured,
                          "error": abs(measured - density) / density})
             print(f"density {density} seed {seed}: {measured:.2f} "
                   f"({100 * rows[-1]['error']:.1f} %)", flush=True)
-    print(f"density error max {max(r['error'] for r in rows):.3f}")
+    ok = [r for r in rows if isinstance(r["error"], float)]
+    print(f"density: {len(rows) - len(ok)} of {len(rows)} failed; error max "
+          f"{max((r['error'] for r in ok), default=float('nan')):.3f}")
     return rows
 
 
@@ -178,7 +193,8 @@ def band_profile(G, size: float, band: float, axis: int):
 
 
 def part_seams(size: float = 6000.0, band: float = 500.0, window_m: float = 1000.0):
-    spec = ScenarioSpec(density=30, vehicles=10, width=size, height=size, seed=0)
+    spec = ScenarioSpec(density=30, vehicles=10, width=size, height=size, seed=0,
+                        skeleton="learned")
     start = time.perf_counter()
     sk = make_skeleton(spec)
     G = expand_skeleton(spec, sk)

@@ -61,7 +61,10 @@ def grow_collectors(
     index.add(skeleton.frame, -1)
     roads: list[np.ndarray] = []
     seeds = []
-    for k, line in enumerate(skeleton.polylines):
+    sources = list(enumerate(skeleton.polylines))
+    if skeleton.grow_from_frame:
+        sources.append((-1, skeleton.frame))
+    for k, line in sources:
         points, tangents = tangent_samples([line], spacing)
         offset = int(rng.integers(1, 3))
         for p, t in zip(points[offset:], tangents[offset:]):

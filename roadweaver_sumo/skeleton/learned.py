@@ -22,9 +22,9 @@ from ..data.condition import style_preset
 from ..data.field import field_to_graph
 from ..roadgraph import edge_coords, edge_length
 from ..spec import STAGE_SKELETON, ScenarioSpec
-from ..tensor_field import TensorField, field_grid
+from ..tensor_field import TensorField, blend, field_grid
 from .model import Skeleton, perimeter
-from .procedural import FIELD_RES
+from .procedural import FIELD_RES, basis_field
 
 #: Densities (road nodes/km²) the training tiles cover well (5th..95th percentile of v1).
 MODEL_DENSITY = (35.0, 145.0)
@@ -63,10 +63,11 @@ def learned_skeleton(spec: ScenarioSpec, generator=None) -> Skeleton:
     return Skeleton(
         polylines=lines,
         frame=perimeter(spec.width, spec.height),
-        basis=_basis_field(F, res, spec.width, spec.height),
+        basis=_basis_field(F, res, spec),
         road_prob=_resample(F[..., 0], res, spec.width, spec.height),
         res=FIELD_RES,
         classes=classes,
+        grow_from_frame=True,
         provenance={"generator": "learned", "attribution": gen.meta.get("attribution", ""),
                     "condition": [round(float(v), 4) for v in c], "window_scale": scale},
     )
@@ -78,14 +79,17 @@ def _resample(channel: np.ndarray, res: float, width: float, height: float) -> n
     return map_coordinates(channel, [Y / res - 0.5, X / res - 0.5], order=1, mode="nearest")
 
 
-def _basis_field(F: np.ndarray, res: float, width: float, height: float) -> TensorField:
-    """The decoded orientation channels, smoothed, with anisotropy scaled into [0, 1]."""
-    c2 = _resample(gaussian_filter(F[..., 1], BASIS_SIGMA_M / res), res, width, height)
-    s2 = _resample(gaussian_filter(F[..., 2], BASIS_SIGMA_M / res), res, width, height)
+def _basis_field(F: np.ndarray, res: float, spec: ScenarioSpec) -> TensorField:
+    """The decoded orientation channels, smoothed, where the field has roads; the style's
+    procedural basis field where it has none (there the decoded direction is noise, and roads
+    the expansion fills in would wander)."""
+    c2 = _resample(gaussian_filter(F[..., 1], BASIS_SIGMA_M / res), res, spec.width, spec.height)
+    s2 = _resample(gaussian_filter(F[..., 2], BASIS_SIGMA_M / res), res, spec.width, spec.height)
     mag = np.hypot(c2, s2)
     full = max(float(np.quantile(mag, 0.9)), 1e-6)
-    gain = np.minimum(1.0 / full, 1.0 / np.maximum(mag, 1e-9))
-    return TensorField(c2 * gain, s2 * gain, FIELD_RES)
+    unit = 1.0 / np.maximum(mag, 1e-9)
+    learned = TensorField(c2 * unit, s2 * unit, FIELD_RES)
+    return blend(learned, mag / full, basis_field(spec, spec.rng(STAGE_SKELETON)))
 
 
 def _clipped_roads(G: nx.Graph, width: float, height: float):

@@ -27,6 +27,9 @@ class Skeleton:
     road_prob: np.ndarray
     res: float
     classes: list[str] = field(default_factory=list)
+    #: grow collectors inward from the perimeter too: a learned skeleton may leave large parts
+    #: of the map empty, which the procedural one (arterials across the map) never does
+    grow_from_frame: bool = False
     #: which generator made it and, for the learned one, the data attribution it carries
     provenance: dict = field(default_factory=lambda: {"generator": "procedural"})
 
