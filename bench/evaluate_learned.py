@@ -166,12 +166,19 @@ def part_realism(seeds, osm_dir: Path, cache: Path = Path("bench/results/real_ti
     real = real_summary(osm_dir, cache)
     out = {"real": {k: v for k, v in real.items() if k != "edge_lengths"}}
     for skeleton in ("learned", "procedural"):
-        figs = [shape_figures(road_graph(ScenarioSpec(density=60, vehicles=10, seed=s,
-                                                      skeleton=skeleton)))
-                for s in seeds]
+        figs, failed = [], 0
+        for s in seeds:
+            try:
+                G = road_graph(ScenarioSpec(density=60, vehicles=10, seed=s, skeleton=skeleton))
+            except RoadweaverError:
+                failed += 1
+                continue
+            figs.append(shape_figures(G))
         mine = summarise(figs)
         out[skeleton] = {"figures": {k: v for k, v in mine.items() if k != "edge_lengths"},
+                         "maps": len(figs), "failed": failed,
                          "distance_to_real": distance(mine, real)}
+        print(f"{skeleton}: {len(figs)} maps, {failed} failed; figures {out[skeleton]['figures']}")
         print(f"{skeleton:10s} distance to real tiles: {out[skeleton]['distance_to_real']}")
     print(f"real tiles: {out['real']}")
     return out

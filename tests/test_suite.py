@@ -44,8 +44,9 @@ def test_existing_suite_is_kept_without_force(suite, capsys):
     assert not [p for p in suite.parent.iterdir() if ".partial-" in p.name]
 
 
-def test_ray_engine_writes_the_same_manifest(suite, tmp_path, capsys):
+def test_ray_engine_writes_the_same_manifest(suite, tmp_path, capsys, monkeypatch):
     ray = pytest.importorskip("ray")
+    monkeypatch.chdir(tmp_path)  # Ray puts the driver's directory on its workers' sys.path
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
         out = tmp_path / "ray"

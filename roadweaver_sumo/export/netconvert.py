@@ -26,15 +26,25 @@ PLAIN_FILES = {
 }
 
 
+def template_dir():
+    """The installed templates, or the repository's ``netconvert_templates/`` when the package
+    is imported from a source checkout (a Ray worker started in the checkout does that: the
+    package's template subpackage exists only in an installed copy)."""
+    try:
+        return resources.files(TEMPLATE_PACKAGE)
+    except ModuleNotFoundError:
+        return Path(__file__).resolve().parents[2] / "netconvert_templates"
+
+
 def available_templates() -> list[str]:
     """Names of the packaged netconvert templates (``urban``, ``suburban``, ...)."""
-    files = resources.files(TEMPLATE_PACKAGE).iterdir()
+    files = template_dir().iterdir()
     return sorted(f.name.removesuffix(".netccfg") for f in files if f.name.endswith(".netccfg"))
 
 
 def fill_template(template: str) -> str:
     """The text of template ``template`` with the plain-XML inputs and net output filled in."""
-    source = resources.files(TEMPLATE_PACKAGE).joinpath(f"{template}.netccfg")
+    source = template_dir().joinpath(f"{template}.netccfg")
     if not source.is_file():
         choices = ", ".join(available_templates())
         raise RoadweaverError(f"unknown netconvert template {template!r}; choose one of: {choices}")
