@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import re
 import shutil
 
@@ -12,6 +13,7 @@ from lxml import etree
 from shapely.geometry import LineString, Point
 
 from roadweaver_sumo.errors import RoadweaverError
+from roadweaver_sumo.export import map_files
 from roadweaver_sumo.export.netconvert import available_templates, run_netconvert
 from roadweaver_sumo.export.sumo_plain import lane_connections, write_plain
 from roadweaver_sumo.hdmap import build_hdmap
@@ -169,3 +171,43 @@ def test_bad_template_or_missing_input_raises(tmp_path):
     write_plain(build_hdmap(town()), tmp_path / "plain")
     with pytest.raises(RoadweaverError, match=r"unknown netconvert template 'rural'.*urban"):
         run_netconvert(tmp_path, "rural")
+
+
+def test_no_lane_changes_inside_junctions(built):
+    """Parallel connections share one multi-lane internal edge; cars must not change lanes on
+    it (a car stuck in a junction would shift into crossing traffic), single lanes need no rule."""
+    _, _, net = built
+    root, _, _ = _read_net(net)
+    internal = [e for e in root.iter("edge") if e.get("function") == "internal"]
+    multi = [lane for e in internal if len(e.findall("lane")) > 1 for lane in e.iter("lane")]
+    assert multi, "the town's arterial crossing has two-lane straight connections"
+    for lane in multi:
+        assert (lane.get("changeLeft"), lane.get("changeRight")) == ("emergency", "emergency")
+    for e in internal:
+        if len(e.findall("lane")) == 1:
+            assert e.find("lane").get("changeLeft") is None
+
+def _digests(folder):
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_parallel_and_sequential_writes_are_identical(tmp_path):
+    hd = build_hdmap(town(), GEO_ORIGIN)
+    map_files.write_map_files(hd, tmp_path / "parallel", parallel=True)
+    map_files.write_map_files(hd, tmp_path / "sequential", parallel=False)
+    written = _digests(tmp_path / "parallel")
+    assert sorted(written) == ["map.osm", "map.xodr", "plain/map.con.xml",
+                               "plain/map.edg.xml", "plain/map.nod.xml"]
+    assert written == _digests(tmp_path / "sequential")
+
+
+@pytest.mark.skipif(not map_files._can_fork(), reason="writers only fork where fork exists")
+def test_error_in_a_forked_writer_is_raised_here(tmp_path, monkeypatch):
+    def broken(hd, path):
+        raise OSError(28, "No space left on device", str(path))
+
+    monkeypatch.setattr(map_files, "write_lanelet2", broken)
+    with pytest.raises(OSError, match="No space left on device"):
+        map_files.write_map_files(build_hdmap(town(), GEO_ORIGIN), tmp_path)
+    assert (tmp_path / "plain/map.con.xml").is_file()  # the other writers still finished
