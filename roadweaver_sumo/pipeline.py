@@ -15,10 +15,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .expand import expand_skeleton
-from .export.lanelet2 import write_lanelet2
+from .export.map_files import write_map_files
 from .export.netconvert import run_netconvert
-from .export.opendrive import write_opendrive
-from .export.sumo_plain import write_plain
 from .hdmap import build_hdmap, hdmap_metrics
 from .metrics import graph_metrics
 from .render import render_preview
@@ -97,9 +95,7 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
     with stage("hdmap"):
         hdmap = build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights)
     with stage("export"):
-        write_plain(hdmap, folder / "plain")
-        write_opendrive(hdmap, folder / "map.xodr")
-        write_lanelet2(hdmap, folder / "map.osm")
+        write_map_files(hdmap, folder)
         (folder / SPEC_FILE).write_text(spec.to_json(), encoding="utf-8")
     with stage("netconvert"):
         run_netconvert(folder, spec.netconvert_template)
