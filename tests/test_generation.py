@@ -90,3 +90,19 @@ def test_blocks_that_are_one_long_road_still_get_split():
 def test_very_flat_maps_get_roads():
     spec, G = generate(density=10, width=5000, height=800, style="grid", seed=0)
     assert road_node_count(G) == spec.target_road_nodes
+
+
+def test_clean_up_never_cuts_the_perimeter_ring():
+    """An arterial fragment meeting the perimeter ring at a shallow angle loses to the ring:
+    cutting the ring would leave border dead ends whose pruning unravels it, and with it the
+    one block the density fill could split (a fragmentary learned skeleton did exactly that)."""
+    from roadweaver_sumo.expand.fill import faces
+    from roadweaver_sumo.expand.planar import clean
+    from roadweaver_sumo.skeleton.model import perimeter
+
+    ring = perimeter(1000, 1000)
+    shallow = np.array([[15.0, 400.0], [60.0, 600.0], [300.0, 650.0]])  # ~13° off the ring
+    G = build_planar_graph([(ring, "collector"), (shallow, "arterial")], 1000, 1000)
+    clean(G, MIN_EDGE, MIN_ANGLE, stub=MIN_EDGE, margin=30.0)
+    blocks = faces(G)
+    assert len(blocks) == 1 and blocks[0].area == pytest.approx(970.0 ** 2, rel=1e-3)

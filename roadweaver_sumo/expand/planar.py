@@ -17,6 +17,7 @@ import shapely.ops
 from scipy.spatial import cKDTree
 
 from ..roadgraph import ROAD_CLASSES, add_road, edge_coords, edge_length, new_road_graph
+from ..skeleton.model import PERIMETER_INSET
 
 GRID = 0.01  # noding precision, metres
 CLASS_RANK = {name: rank for rank, name in enumerate(reversed(ROAD_CLASSES))}  # local=0
@@ -201,7 +202,20 @@ def remove_sharp_angles(G: nx.Graph, min_angle_deg: float, cache: dict | None = 
 
 
 def _edge_weight(G, u, v):
-    return (CLASS_RANK[G.edges[u, v]["road_class"]], edge_length(G, u, v))
+    """Which of two roads to keep: the perimeter ring always, then the higher class, then the
+    longer road. Cutting the ring for a road that meets it at a shallow angle would leave two
+    dead ends at the border, and pruning those unravels the whole ring (seen with fragmentary
+    learned skeletons: no block left for the density fill)."""
+    return (on_perimeter(G, u, v), CLASS_RANK[G.edges[u, v]["road_class"]], edge_length(G, u, v))
+
+
+def on_perimeter(G: nx.Graph, u: int, v: int, tolerance: float = 1.0) -> bool:
+    """Whether road u-v runs along the perimeter ring road (``skeleton.model.perimeter``)."""
+    c = np.asarray(G.edges[u, v]["coords"], dtype=float)
+    lo, hx, hy = PERIMETER_INSET, G.graph["width"] - PERIMETER_INSET, G.graph["height"] - PERIMETER_INSET
+    off = np.minimum.reduce([np.abs(c[:, 0] - lo), np.abs(c[:, 1] - lo),
+                             np.abs(c[:, 0] - hx), np.abs(c[:, 1] - hy)])
+    return bool((off < tolerance).all())
 
 
 def prune_stubs(G: nx.Graph, max_length: float, margin: float) -> None:

@@ -52,7 +52,10 @@ def road_field_from_polylines(
     return blurred / peak if peak > 0 else blurred
 
 
-def perimeter(width: float, height: float, inset: float = 15.0) -> np.ndarray:
+PERIMETER_INSET = 15.0  # metres between the perimeter ring road and the map border
+
+
+def perimeter(width: float, height: float, inset: float = PERIMETER_INSET) -> np.ndarray:
     """A ring road just inside the map border. Roads that reach the edge of the map end on it
     instead of being cut off, so the network is closed for simulation (no dead ends made by the
     map edge) and every block is a face that the density fill can split."""
