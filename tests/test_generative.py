@@ -111,6 +111,29 @@ def test_training_is_reproducible_by_seed(tiny_dataset, tiny_models, tmp_path):
     assert not all(torch.equal(a[k], c[k]) for k in a)
 
 
+def test_second_token_group_is_predicted_given_the_first():
+    """The chain: group 1's logits change with the group-0 token at the same position,
+    group 0's do not depend on group 1."""
+    torch.manual_seed(0)
+    model = MaskGIT(MaskGITConfig(dim=32, depth=1, heads=2, codebook_size=16, groups=2, grid=4,
+                                  dropout=0.0)).eval()
+    for head in model.heads:  # leave adaLN-Zero's identity start so the heads see something
+        torch.nn.init.normal_(head.weight)
+    tokens = torch.randint(0, 16, (1, 16, 2))
+    mask = torch.ones(1, 16, dtype=torch.bool)
+    other = tokens.clone()
+    other[..., 0] = (other[..., 0] + 1) % 16
+    with torch.no_grad():
+        a, b = model(tokens, mask, torch.zeros(1, 11)), model(other, mask, torch.zeros(1, 11))
+    assert torch.equal(a[..., 0, :], b[..., 0, :])
+    assert not torch.allclose(a[..., 1, :], b[..., 1, :])
+    third = tokens.clone()
+    third[..., 1] = (third[..., 1] + 1) % 16
+    with torch.no_grad():
+        c = model(third, mask, torch.zeros(1, 11))
+    assert torch.equal(a, c)  # all positions masked: group-1 tokens are never seen
+
+
 def test_checkpoint_round_trip_and_bad_files(tiny_models, tmp_path):
     root, _, _ = tiny_models
     vq, meta = load_vqvae(root / "vq.pt")
@@ -224,3 +247,4 @@ def test_train_cli_writes_a_checkpoint(tiny_dataset, tmp_path, capsys):
                      "--steps", "2", "--batch", "2", "--quiet"]) == 0
     assert "held-out road IoU" in capsys.readouterr().out
     assert load_vqvae(out)[1]["settings"]["steps"] == 2
+

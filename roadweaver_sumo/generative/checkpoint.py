@@ -50,12 +50,21 @@ def read_checkpoint(path: Path, kind: str) -> tuple[dict, dict]:
 def load_vqvae(path: Path = SHIPPED_VQVAE) -> tuple[VQVAE, dict]:
     state, meta = read_checkpoint(path, "vqvae")
     model = VQVAE(VQVAEConfig(**meta["config"]))
-    model.load_state_dict(state)
+    _load_state(model, state, path)
     return model.eval(), meta
 
 
 def load_maskgit(path: Path = SHIPPED_MASKGIT) -> tuple[MaskGIT, dict]:
     state, meta = read_checkpoint(path, "maskgit")
     model = MaskGIT(MaskGITConfig(**meta["config"]))
-    model.load_state_dict(state)
+    _load_state(model, state, path)
     return model.eval(), meta
+
+
+def _load_state(model: torch.nn.Module, state: dict, path: Path) -> None:
+    """Weights into the model; a checkpoint of another architecture is a one-line error."""
+    try:
+        model.load_state_dict(state)
+    except RuntimeError:
+        raise RoadweaverError(f"{path} does not fit this version's {type(model).__name__} "
+                              "(trained by another version?): train it again") from None

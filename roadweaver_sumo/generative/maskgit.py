@@ -7,6 +7,12 @@ an all-masked grid (or one with some positions fixed, for in-painting) and, over
 keeps the most confident predictions (Chang et al. 2022). With ``guidance`` > 0 the logits are
 pushed away from the unconditional prediction (classifier-free guidance), which sharpens what
 the condition asks for.
+
+The ``groups`` tokens of one position are strongly dependent (given the first, the second has
+3.6 nats of entropy instead of 6.0 on the training tiles), so they are predicted as a chain,
+not independently: the head of group g also sees the embedded tokens of groups < g at the same
+position (the true ones in training, the sampled ones in decoding). Independent draws would
+pair codes that never occur together and decode to broken patches.
 """
 
 from __future__ import annotations
@@ -64,7 +70,8 @@ class MaskGIT(nn.Module):
         self.final_mod = nn.Linear(d, 2 * d)
         nn.init.zeros_(self.final_mod.weight)
         nn.init.zeros_(self.final_mod.bias)
-        self.head = nn.Linear(d, G * K)
+        self.chain_embed = nn.ModuleList(nn.Embedding(K, d) for _ in range(G - 1))
+        self.heads = nn.ModuleList(nn.Linear(d, K) for _ in range(G))
 
     def condition(self, cond: torch.Tensor, drop: torch.Tensor | None = None) -> torch.Tensor:
         """Standardised c (B, 11) -> embedding (B, dim); dropped rows get the null embedding."""
@@ -75,8 +82,23 @@ class MaskGIT(nn.Module):
 
     def forward(self, tokens: torch.Tensor, mask: torch.Tensor, cond: torch.Tensor,
                 drop: torch.Tensor | None = None) -> torch.Tensor:
-        """tokens (B, n, G) with n = grid², mask (B, n) True where hidden -> logits (B, n, G, K)."""
-        B, n, G = tokens.shape
+        """tokens (B, n, G) with n = grid², mask (B, n) True where hidden -> logits (B, n, G, K),
+        group g's logits given the true tokens of groups < g (teacher forcing)."""
+        h = self.trunk(tokens, mask, cond, drop)
+        return torch.stack([self.group_logits(h, gi, tokens[..., :gi])
+                            for gi in range(self.cfg.groups)], dim=2)
+
+    def group_logits(self, h: torch.Tensor, gi: int, earlier: torch.Tensor) -> torch.Tensor:
+        """Logits (B, n, K) of group ``gi`` from trunk features h and the tokens (B, n, gi) of
+        the groups before it at the same positions."""
+        for gj in range(gi):
+            h = h + self.chain_embed[gj](earlier[..., gj])
+        return self.heads[gi](h)
+
+    def trunk(self, tokens: torch.Tensor, mask: torch.Tensor, cond: torch.Tensor,
+              drop: torch.Tensor | None = None) -> torch.Tensor:
+        """Transformer features (B, n, dim) of every position."""
+        n = tokens.shape[1]
         x = sum(emb(tokens[..., gi]) for gi, emb in enumerate(self.token_embed))
         x = torch.where(mask[..., None], self.mask_embed.expand_as(x), x)
         pos = (self.row_embed[:, None, :] + self.col_embed[None, :, :]).reshape(-1, self.cfg.dim)
@@ -85,8 +107,7 @@ class MaskGIT(nn.Module):
         for block in self.blocks:
             x = block(x, c)
         scale, shift = self.final_mod(c).unsqueeze(1).chunk(2, dim=-1)
-        x = self.final_norm(x) * (1 + scale) + shift
-        return self.head(x).reshape(B, n, G, self.cfg.codebook_size)
+        return self.final_norm(x) * (1 + scale) + shift
 
     @torch.no_grad()
     def sample(self, cond: torch.Tensor, generator: torch.Generator, *, steps: int = 8,
@@ -111,17 +132,23 @@ class MaskGIT(nn.Module):
         drop_all = torch.ones(B, dtype=torch.bool)
         for t in range(steps):
             if guidance > 0:  # conditional and unconditional rows in one batch
-                both = self(tokens.repeat(2, 1, 1), masked.repeat(2, 1), cond.repeat(2, 1),
-                            torch.cat([~drop_all, drop_all]))
-                logits, uncond = both[:B], both[B:]
-                logits = logits + guidance * (logits - uncond)
+                h = self.trunk(tokens.repeat(2, 1, 1), masked.repeat(2, 1), cond.repeat(2, 1),
+                               torch.cat([~drop_all, drop_all]))
             else:
-                logits = self(tokens, masked, cond)
-            logp = F.log_softmax(logits / max(temperature, 1e-4), dim=-1)
-            gumbel = -torch.log(-torch.log(
-                torch.rand(logp.shape, generator=generator).clamp_(1e-9, 1 - 1e-9)))
-            choice = (logp + gumbel).argmax(-1)  # (B, n, G): a sample per group
-            conf = torch.gather(logp, -1, choice[..., None]).squeeze(-1).sum(-1)  # (B, n)
+                h = self.trunk(tokens, masked, cond)
+            choice = torch.zeros(B, n, G, dtype=torch.long)
+            conf = torch.zeros(B, n)
+            for gi in range(G):  # the chain: group gi given the groups sampled before it
+                earlier = choice[..., :gi]
+                logits = self.group_logits(h, gi, earlier.repeat(2, 1, 1) if guidance > 0
+                                           else earlier)
+                if guidance > 0:
+                    logits = logits[:B] + guidance * (logits[:B] - logits[B:])
+                logp = F.log_softmax(logits / max(temperature, 1e-4), dim=-1)
+                gumbel = -torch.log(-torch.log(
+                    torch.rand(logp.shape, generator=generator).clamp_(1e-9, 1 - 1e-9)))
+                choice[..., gi] = (logp + gumbel).argmax(-1)
+                conf += torch.gather(logp, -1, choice[..., gi, None]).squeeze(-1)
             ratio = math.cos(0.5 * math.pi * (t + 1) / steps)
             keep_masked = torch.floor(unknown0.float() * ratio).long()  # per row
             anneal = 1.0 - (t + 1) / steps
