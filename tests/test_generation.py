@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from shapely.geometry import LineString
 
 from roadweaver_sumo.expand import MIN_ANGLE, MIN_EDGE, expand_skeleton
 from roadweaver_sumo.expand.planar import build_planar_graph, departure_angles
@@ -106,3 +107,25 @@ def test_clean_up_never_cuts_the_perimeter_ring():
     clean(G, MIN_EDGE, MIN_ANGLE, stub=MIN_EDGE, margin=30.0)
     blocks = faces(G)
     assert len(blocks) == 1 and blocks[0].area == pytest.approx(970.0 ** 2, rel=1e-3)
+
+
+def test_straight_chord_crosses_a_block_and_stops_at_holes():
+    """The fallback road for a block no field-following road crosses: straight across the long
+    side, ending on the block edge, or on an inner ring where the block has a hole."""
+    from shapely.geometry import Polygon
+
+    from roadweaver_sumo.expand.fill import _NodePoints, straight_chord
+    from roadweaver_sumo.roadgraph import new_road_graph
+
+    G = new_road_graph(1000, 1000)
+    for k, corner in enumerate([(0.0, 0.0), (800.0, 0.0), (800.0, 400.0), (0.0, 400.0)]):
+        G.add_node(k, xy=corner)
+    nodes = _NodePoints(G)
+    block = Polygon([(0, 0), (800, 0), (800, 400), (0, 400)])
+    chord = straight_chord(block, nodes, None, None, MIN_EDGE, MIN_ANGLE)
+    assert chord is not None
+    assert np.allclose(sorted([chord[0][1], chord[-1][1]]), [0, 400])  # across the long side
+    assert np.allclose(chord[:, 0], chord[0, 0])  # straight
+    holed = Polygon(block.exterior.coords, [[(350, 150), (450, 150), (450, 250), (350, 250)]])
+    chord = straight_chord(holed, nodes, None, None, MIN_EDGE, MIN_ANGLE)
+    assert chord is not None and not LineString(chord).crosses(holed.interiors[0])

@@ -50,11 +50,14 @@ def fill_to_density(
     count = road_node_count(G)
     while heap and count < target - 1:
         _, _, face = heapq.heappop(heap)
-        chord = split_chord(face, nodes, field, rng, min_edge, min_angle)
-        if chord is None:
-            continue
-        ends = insert_chord(G, chord, min_edge, index)
-        nodes.update()  # a refused chord may still have split a road at its first end
+        ends = None
+        for make_chord in (split_chord, straight_chord):
+            chord = make_chord(face, nodes, field, rng, min_edge, min_angle)
+            if chord is not None:
+                ends = insert_chord(G, chord, min_edge, index)
+                nodes.update()  # a refused chord may still have split a road at its first end
+            if ends is not None:
+                break
         if ends is None:
             continue
         # A chord adds one to the degree of its two end nodes; the other nodes it may create
@@ -111,18 +114,11 @@ def split_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rng, min_
     """A local road across ``face``: traced both ways from an interior point along the tensor
     axis that cuts the face's long side, clipped where it first leaves the face. A few start
     points and both axes are tried before the block is given up."""
-    rect = face.minimum_rotated_rectangle
-    rc = np.asarray(rect.exterior.coords)
-    sides = np.diff(rc[:3], axis=0)
-    long_side = sides[int(np.argmax(np.hypot(*sides.T)))]
-    along = long_side / max(np.hypot(*long_side), 1e-9)
-    across = np.array([-along[1], along[0]])
-    centre = np.asarray(face.representative_point().coords[0])
-    centroid = np.asarray(face.centroid.coords[0])
-    if face.contains(Point(centroid)):
-        centre = centroid
+    along, across, centre = _axes(face)
+    long_side = np.hypot(*np.diff(np.asarray(face.minimum_rotated_rectangle.exterior.coords)[:3],
+                                  axis=0).T).max()
     for attempt in range(6):
-        shift = 0.0 if attempt == 0 else rng.uniform(-0.3, 0.3) * np.hypot(*long_side)
+        shift = 0.0 if attempt == 0 else rng.uniform(-0.3, 0.3) * long_side
         start = centre + shift * along
         if not face.contains(Point(start)):
             continue
@@ -135,6 +131,52 @@ def split_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rng, min_
         if _ends_ok(face, nodes, chord, min_edge, min_angle):
             return chord
     return None
+
+
+def straight_chord(face: Polygon, nodes: _NodePoints, field, rng, min_edge, min_angle):
+    """A straight road across the middle of ``face``, across its long side or else along it:
+    for a block that no field-following road crosses (near the centre of a radial field the
+    streamlines circle, end on the side they started from, or never reach the block edge)."""
+    along, across, centre = _axes(face)
+    for wanted in (across, along):
+        halves = [_straight_in_face(face, centre, d) for d in (wanted, -wanted)]
+        if any(h is None for h in halves):
+            continue
+        chord = np.vstack([halves[1][::-1], halves[0][1:]])
+        if _ends_ok(face, nodes, chord, min_edge, min_angle):
+            return chord
+    return None
+
+
+def _straight_in_face(face: Polygon, start, d):
+    """The straight path from ``start`` along ``d`` to where it first leaves the face, with a
+    point every STEP metres like a traced one; None if ``start`` is not inside."""
+    if not face.contains(Point(start)):
+        return None
+    x0, y0, x1, y1 = face.bounds
+    path = LineString([start, start + 2.0 * (x1 - x0 + y1 - y0) * np.asarray(d, float)])
+    hit = path.intersection(face.boundary)  # the block's inner rings (holes) stop it too
+    if hit.is_empty:
+        return None
+    along = min(path.project(g) for g in shapely.get_parts(shapely.points(
+        shapely.get_coordinates(hit))))
+    steps = max(1, math.ceil(along / STEP))
+    return np.asarray(start, float) + np.linspace(0.0, along, steps + 1)[:, None] * d
+
+
+def _axes(face: Polygon):
+    """Unit vectors along and across the long side of the face's minimum rotated rectangle, and
+    a point inside the face (its centroid where that is inside)."""
+    rc = np.asarray(face.minimum_rotated_rectangle.exterior.coords)
+    sides = np.diff(rc[:3], axis=0)
+    long_side = sides[int(np.argmax(np.hypot(*sides.T)))]
+    along = long_side / max(np.hypot(*long_side), 1e-9)
+    across = np.array([-along[1], along[0]])
+    centre = np.asarray(face.representative_point().coords[0])
+    centroid = np.asarray(face.centroid.coords[0])
+    if face.contains(Point(centroid)):
+        centre = centroid
+    return along, across, centre
 
 
 def _trace_in_face(face: Polygon, start, d, field: TensorField):
@@ -169,7 +211,7 @@ def _ends_ok(face: Polygon, nodes: _NodePoints, chord, min_edge: float, min_angl
     for end, inner in ((chord[0], chord[1]), (chord[-1], chord[-2])):
         if nodes.any_within(end, 2.5 * min_edge):
             return False
-        ring = face.exterior
+        ring = min([face.exterior, *face.interiors], key=lambda r: r.distance(Point(end)))
         s = ring.project(Point(end))
         a = np.asarray(ring.interpolate(max(s - 1.0, 0)).coords[0])
         b = np.asarray(ring.interpolate(min(s + 1.0, ring.length)).coords[0])
