@@ -124,11 +124,9 @@ def split_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rng, min_
             continue
         wanted = across if attempt < 4 else along
         d0 = choose_axis(field, start, wanted)
-        halves = [_trace_in_face(face, start, d, field) for d in (d0, -d0)]
-        if any(h is None for h in halves):
-            continue
-        chord = np.vstack([halves[1][::-1], halves[0][1:]])
-        if _ends_ok(face, nodes, chord, min_edge, min_angle):
+        chord = _joined(face, nodes, [_trace_in_face(face, start, d, field) for d in (d0, -d0)],
+                        min_edge, min_angle)
+        if chord is not None:
             return chord
     return None
 
@@ -139,13 +137,20 @@ def straight_chord(face: Polygon, nodes: _NodePoints, field, rng, min_edge, min_
     streamlines circle, end on the side they started from, or never reach the block edge)."""
     along, across, centre = _axes(face)
     for wanted in (across, along):
-        halves = [_straight_in_face(face, centre, d) for d in (wanted, -wanted)]
-        if any(h is None for h in halves):
-            continue
-        chord = np.vstack([halves[1][::-1], halves[0][1:]])
-        if _ends_ok(face, nodes, chord, min_edge, min_angle):
+        chord = _joined(face, nodes, [_straight_in_face(face, centre, d) for d in (wanted, -wanted)],
+                        min_edge, min_angle)
+        if chord is not None:
             return chord
     return None
+
+
+def _joined(face: Polygon, nodes: _NodePoints, halves: list, min_edge, min_angle):
+    """The two halves traced from one start point as one chord, if both reach the block edge
+    and :func:`_ends_ok` accepts the ends."""
+    if any(h is None for h in halves):
+        return None
+    chord = np.vstack([halves[1][::-1], halves[0][1:]])
+    return chord if _ends_ok(face, nodes, chord, min_edge, min_angle) else None
 
 
 def _straight_in_face(face: Polygon, start, d):
