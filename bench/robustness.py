@@ -1,7 +1,7 @@
 """Robustness sweep (issue 5): random specs must give a valid scenario or a clear refusal.
 
 Usage: python bench/robustness.py [--count 200] [--seed 0] [--skeleton procedural]
-                                  [--json bench/results/robustness_<skeleton>.json]
+                                  [--specs A-B] [--json bench/results/robustness_<skeleton>.json]
 
 Each spec (sizes 0.5-5 km, squares and rectangles; densities 5-120 log-uniform; every style;
 random seeds) is built to its SUMO net and demand (no libsumo run) and measured on
@@ -78,25 +78,33 @@ def main() -> None:
     ap.add_argument("--count", type=int, default=200)
     ap.add_argument("--seed", type=int, default=0, help="seed of the spec generator")
     ap.add_argument("--skeleton", default="procedural")
+    ap.add_argument("--specs", help="only specs A-B of the drawn list (to split a sweep over "
+                    "processes; the specs are the same as in a whole run)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     out = args.json or Path(f"bench/results/robustness_{args.skeleton}.json")
+    first, last = 0, args.count - 1
+    if args.specs:
+        first, last = (int(x) for x in args.specs.split("-"))
     results = []
     for k, spec_args in enumerate(random_specs(args.count, args.seed)):
+        if not first <= k <= last:
+            continue
         result = {"spec": spec_args, **check(spec_args, args.skeleton)}
         results.append(result)
         print(f"{k:3d} {result['verdict']:8s} {result['seconds']:6.1f} s  {spec_args}"
               + (f"  {result['reason']}" if result["reason"] else ""), flush=True)
     counts = {v: sum(r["verdict"] == v for r in results)
               for v in ("valid", "refused", "failed", "error", "crash")}
-    print(f"\n{args.count} specs, skeleton {args.skeleton}: " +
+    print(f"\n{len(results)} specs, skeleton {args.skeleton}: " +
           ", ".join(f"{n} {v}" for v, n in counts.items()))
     for r in results:
         if r["verdict"] not in ("valid", "refused"):
             print(f"  {r['verdict']}: {r['spec']}: {r['reason']}")
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps({"skeleton": args.skeleton, "count": args.count, "seed": args.seed,
-                               "counts": counts, "results": results}, indent=1) + "\n")
+                               "specs": [first, last], "counts": counts, "results": results},
+                              indent=1) + "\n")
 
 
 if __name__ == "__main__":
