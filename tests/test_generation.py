@@ -129,3 +129,20 @@ def test_straight_chord_crosses_a_block_and_stops_at_holes():
     holed = Polygon(block.exterior.coords, [[(350, 150), (450, 150), (450, 250), (350, 250)]])
     chord = straight_chord(holed, nodes, None, None, MIN_EDGE, MIN_ANGLE)
     assert chord is not None and not LineString(chord).crosses(holed.interiors[0])
+
+
+def test_straight_chord_ends_on_a_dead_end_inside_the_block():
+    """A dead-end road reaching into the block is a road like any other: the straight fill road
+    ends on it instead of crossing it (which insert_chord would refuse)."""
+    from roadweaver_sumo.expand.edge_index import EdgeIndex
+    from roadweaver_sumo.expand.fill import _NodePoints, faces, insert_chord, straight_chord
+
+    ring = np.array([[0, 0], [800, 0], [800, 400], [0, 400], [0, 0]], float)
+    dead_end = np.array([[0, 150], [600, 150]], float)
+    G = build_planar_graph([(ring, "collector"), (dead_end, "local")], 1000, 1000)
+    (block,) = faces(G)
+    index = EdgeIndex(G)
+    chord = straight_chord(block, _NodePoints(G), None, None, MIN_EDGE, MIN_ANGLE, roads=index)
+    assert chord is not None
+    assert not LineString(chord).crosses(LineString(dead_end))
+    assert insert_chord(G, chord, MIN_EDGE, index) is not None

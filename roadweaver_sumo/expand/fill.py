@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import heapq
 import math
+from functools import partial
 
 import networkx as nx
 import numpy as np
@@ -51,7 +52,7 @@ def fill_to_density(
     while heap and count < target - 1:
         _, _, face = heapq.heappop(heap)
         ends = None
-        for make_chord in (split_chord, straight_chord):
+        for make_chord in (split_chord, partial(straight_chord, roads=index)):
             chord = make_chord(face, nodes, field, rng, min_edge, min_angle)
             if chord is not None:
                 ends = insert_chord(G, chord, min_edge, index)
@@ -131,42 +132,56 @@ def split_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rng, min_
     return None
 
 
-def straight_chord(face: Polygon, nodes: _NodePoints, field, rng, min_edge, min_angle):
+def straight_chord(face: Polygon, nodes: _NodePoints, field, rng, min_edge, min_angle, *,
+                   roads: EdgeIndex | None = None):
     """A straight road across the middle of ``face``, across its long side or else along it:
     for a block that no field-following road crosses (near the centre of a radial field the
-    streamlines circle, end on the side they started from, or never reach the block edge)."""
+    streamlines circle, end on the side they started from, or never reach the block edge). It
+    ends on the first road it meets, a dead end inside the block included (``roads``)."""
     along, across, centre = _axes(face)
     for wanted in (across, along):
-        chord = _joined(face, nodes, [_straight_in_face(face, centre, d) for d in (wanted, -wanted)],
-                        min_edge, min_angle)
+        halves = [_straight_in_face(face, centre, d, roads) for d in (wanted, -wanted)]
+        met = [line for _, line in filter(None, halves)]
+        chord = _joined(face, nodes, [h and h[0] for h in halves], min_edge, min_angle, met)
         if chord is not None:
             return chord
     return None
 
 
-def _joined(face: Polygon, nodes: _NodePoints, halves: list, min_edge, min_angle):
+def _joined(face: Polygon, nodes: _NodePoints, halves: list, min_edge, min_angle, met=()):
     """The two halves traced from one start point as one chord, if both reach the block edge
-    and :func:`_ends_ok` accepts the ends."""
+    (or a road in ``met``) and :func:`_ends_ok` accepts the ends."""
     if any(h is None for h in halves):
         return None
     chord = np.vstack([halves[1][::-1], halves[0][1:]])
-    return chord if _ends_ok(face, nodes, chord, min_edge, min_angle) else None
+    return chord if _ends_ok(face, nodes, chord, min_edge, min_angle, met) else None
 
 
-def _straight_in_face(face: Polygon, start, d):
-    """The straight path from ``start`` along ``d`` to where it first leaves the face, with a
-    point every STEP metres like a traced one; None if ``start`` is not inside."""
+def _straight_in_face(face: Polygon, start, d, roads: EdgeIndex | None):
+    """The straight path from ``start`` along ``d`` to the first block edge or road it meets,
+    with a point every STEP metres like a traced one, and the line it ends on; None if
+    ``start`` is not inside."""
     if not face.contains(Point(start)):
         return None
     x0, y0, x1, y1 = face.bounds
     path = LineString([start, start + 2.0 * (x1 - x0 + y1 - y0) * np.asarray(d, float)])
-    hit = path.intersection(face.boundary)  # the block's inner rings (holes) stop it too
-    if hit.is_empty:
+    lines = [face.exterior, *face.interiors]  # inner rings (holes) stop it too
+    if roads is not None:
+        lines += [roads.lines[key] for key in roads.near(path, 0.0)]
+    best = None
+    for line in lines:
+        hit = path.intersection(line)
+        if hit.is_empty:
+            continue
+        along = min(path.project(g) for g in shapely.get_parts(shapely.points(
+            shapely.get_coordinates(hit))))
+        if along > 1e-6 and (best is None or along < best[0]):
+            best = (along, line)
+    if best is None:
         return None
-    along = min(path.project(g) for g in shapely.get_parts(shapely.points(
-        shapely.get_coordinates(hit))))
+    along, line = best
     steps = max(1, math.ceil(along / STEP))
-    return np.asarray(start, float) + np.linspace(0.0, along, steps + 1)[:, None] * d
+    return np.asarray(start, float) + np.linspace(0.0, along, steps + 1)[:, None] * d, line
 
 
 def _axes(face: Polygon):
@@ -209,14 +224,16 @@ def _trace_in_face(face: Polygon, start, d, field: TensorField):
     return None
 
 
-def _ends_ok(face: Polygon, nodes: _NodePoints, chord, min_edge: float, min_angle: float) -> bool:
-    """Both ends meet the block edge at a decent angle and away from existing junctions."""
+def _ends_ok(face: Polygon, nodes: _NodePoints, chord, min_edge: float, min_angle: float,
+             met=()) -> bool:
+    """Both ends meet the block edge (or a road in ``met``) at a decent angle and away from
+    existing junctions."""
     if LineString(chord).length < 3 * min_edge:
         return False
     for end, inner in ((chord[0], chord[1]), (chord[-1], chord[-2])):
         if nodes.any_within(end, 2.5 * min_edge):
             return False
-        ring = min([face.exterior, *face.interiors], key=lambda r: r.distance(Point(end)))
+        ring = min([face.exterior, *face.interiors, *met], key=lambda r: r.distance(Point(end)))
         s = ring.project(Point(end))
         a = np.asarray(ring.interpolate(max(s - 1.0, 0)).coords[0])
         b = np.asarray(ring.interpolate(min(s + 1.0, ring.length)).coords[0])
