@@ -67,3 +67,22 @@ def test_a_star_links_a_dangling_end_to_the_nearest_road():
     start, end = links[0][0], links[0][-1]
     assert np.allclose(start, [200.0, 160.0])
     assert math.isclose(end[1], 260.0, abs_tol=1e-6)  # ends exactly on the other road
+
+
+def test_junctions_placed_on_a_rectangular_field():
+    """Junction placement reads a heat window clipped to the field's own rows and columns: a
+    learned skeleton of a rectangular map has a field that is not square."""
+    from roadweaver_sumo.data.vectorise import place_junctions, skeleton_graph
+
+    res, rows, cols = 10.0, 40, 10
+    mask = np.zeros((rows, cols), bool)
+    mask[:, 8] = True  # a road near the right edge
+    mask[30, :9] = True  # a side road meeting it
+    G = skeleton_graph(mask, res, cols * res, "arterial")
+    yy, xx = np.mgrid[0:rows, 0:cols]
+    heat = np.exp(-0.5 * ((xx - 8) ** 2 + (yy - 30) ** 2))
+    junctions = [n for n, d in G.degree() if d >= 3]
+    assert junctions
+    place_junctions(G, heat, res)
+    for n in junctions:
+        assert np.hypot(G.nodes[n]["xy"][0] - 85.0, G.nodes[n]["xy"][1] - 305.0) < res

@@ -172,12 +172,12 @@ def merge_close_junctions(G: nx.Graph, max_dist: float) -> nx.Graph:
 def place_junctions(G: nx.Graph, junction: np.ndarray, res: float, radius_px: int = 2,
                     min_heat: float = 0.5) -> nx.Graph:
     """Move each junction to the heat-weighted centre of the junction-heatmap peak near it."""
-    size = junction.shape[0]
+    rows, cols = junction.shape  # not square for a rectangular map
     for n in [n for n, d in G.degree() if d >= 3]:
         x, y = G.nodes[n]["xy"]
         iy, ix = int(y / res), int(x / res)
-        y0, y1 = max(iy - radius_px, 0), min(iy + radius_px + 1, size)
-        x0, x1 = max(ix - radius_px, 0), min(ix + radius_px + 1, size)
+        y0, y1 = max(iy - radius_px, 0), min(iy + radius_px + 1, rows)
+        x0, x1 = max(ix - radius_px, 0), min(ix + radius_px + 1, cols)
         win = junction[y0:y1, x0:x1]
         if win.size == 0 or win.max() < min_heat:
             continue
