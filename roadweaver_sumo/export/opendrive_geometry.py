@@ -9,7 +9,7 @@ that is what a reader integrates (the ASAM checker flags mismatches above 1 mm).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -21,11 +21,12 @@ _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(16)
 _CHUNK = 256  # curves per quadrature batch
 
 
-@dataclass(frozen=True)
-class Piece:
+class Piece(NamedTuple):
     """One ``<geometry>`` record: start ``s``, start pose (``x``, ``y``, ``hdg``), ``length``,
     and either a ``curvature`` (line: 0, arc: signed, left positive) or normalised
-    ``paramPoly3`` coefficients ``u``/``v`` (a, b, c, d) in the local frame of the start pose."""
+    ``paramPoly3`` coefficients ``u``/``v`` (a, b, c, d) in the local frame of the start pose.
+    A named tuple, not a frozen dataclass: a 10 km map has 160,000 of them, and a tuple is
+    built several times faster."""
 
     kind: str  # "line", "arc" or "paramPoly3"
     s: float
@@ -120,16 +121,17 @@ def bezier_pieces(ctrl: np.ndarray) -> list[Piece]:
             for i in range(len(hdg))]
 
 
-def parampoly3_length(u: np.ndarray, v: np.ndarray, intervals: int = 64) -> np.ndarray:
+def parampoly3_length(u: np.ndarray, v: np.ndarray, intervals: int = 32) -> np.ndarray:
     """Arc lengths of normalised ``paramPoly3`` curves (coefficient rows a, b, c, d of shape
     (m, 4); p in [0, 1]) by composite 16-point Gauss-Legendre quadrature of their speed:
-    exact to ~1e-9 m for road-sized curves."""
+    within ~1e-12 m of 64 intervals for the connectors of a 6 km map, far below the written
+    1e-9 m (16 intervals: 2e-10 m; 8: 5e-6 m, near-cusp curves converge slowest)."""
     u, v = np.atleast_2d(u), np.atleast_2d(v)
     half = 0.5 / intervals
     p = ((np.arange(intervals) + 0.5)[:, None] / intervals + half * _GL_NODES[None]).ravel()
     p2 = p**2
     lengths = np.empty(len(u))
-    for k in range(0, len(u), _CHUNK):  # 1000 nodes per curve: a few MB per chunk, in cache
+    for k in range(0, len(u), _CHUNK):  # 512 nodes per curve: a few MB per chunk, in cache
         uu, vv = u[k:k + _CHUNK], v[k:k + _CHUNK]
         du = uu[:, 1:2] + 2.0 * uu[:, 2:3] * p + 3.0 * uu[:, 3:4] * p2
         dv = vv[:, 1:2] + 2.0 * vv[:, 2:3] * p + 3.0 * vv[:, 3:4] * p2

@@ -4,7 +4,8 @@ faster: the exporters write tens of thousands of elements per km² and lxml's pe
 
 Attributes are formatted to text when an element is created, so an element is just a tag, one
 string and its children; a childless element may even be given as its finished text
-(:func:`leaf`). Only what the exporters use is supported: attributes, children, and a text or
+(:func:`leaf`), and a whole subtree that repeats thousands of times as its finished lines
+(:class:`Block`). Only what the exporters use is supported: attributes, children, and a text or
 CDATA child of a childless element.
 """
 
@@ -30,6 +31,14 @@ class Element:
 
     def extend(self, children) -> None:
         self.children.extend(children)
+
+
+class Block(str):
+    """A finished subtree as text: its lines joined by newlines, indented relative to the
+    block's first line with the indent of the file it goes into. Written with each line
+    moved to the block's place in the tree."""
+
+    __slots__ = ()
 
 
 def escape(value: str) -> str:
@@ -74,6 +83,8 @@ def _write(elem: Element, pad: str, indent: str, lines: list[str]) -> None:
         for child in elem.children:
             if type(child) is str:
                 lines.append(inner + child)
+            elif type(child) is Block:
+                lines.append(inner + child.replace("\n", "\n" + inner))
             elif child.children:
                 _write(child, inner, indent, lines)
             elif child.text is None:
