@@ -34,11 +34,12 @@ from shapely.geometry import LineString
 
 from ..hdmap.model import HDMap, Lane
 from ..scenario.xmlfile import DECLARATION
-from .xmltext import Element, attr_text, leaf, sub, write
+from .xmltext import Block, Element, attr_text, leaf, sub, write
 
 GENERATOR = "roadweaver-sumo"
 LANE_TAG = "roadweaver:lane"  # the HD map lane id of a lanelet, for loaders and debugging
 DEGREE_DECIMALS = 10  # 1e-10 degrees is about 0.01 mm
+INDENT = "    "  # the indent of the written file
 TRAFFIC_LIGHT_OFFSET_M = 1.0
 MIN_STEP_M = 1e-3  # shorter boundary steps are dropped  # the traffic light way sits this far past the stop line
 
@@ -373,12 +374,11 @@ def speed_limit_tag(speed_mps: float) -> str:
     return f"{round(speed_mps * 3.6, 2):g}"
 
 
-def _element(parent, tag: str, eid: int) -> Element:
-    return sub(parent, tag, f' id="{eid}" visible="true" version="1"')
-
-
-def _add_tags(element, tags) -> None:
-    element.extend(_tag_lines(tags))
+def _element(tag: str, eid: int, children: list[str]) -> Block:
+    """An element with OSM's id attributes and childless children, as one finished block
+    (ways and relations number tens of thousands, each with a handful of children)."""
+    return Block(f'<{tag} id="{eid}" visible="true" version="1">\n{INDENT}'
+                 + f"\n{INDENT}".join(children) + f"\n</{tag}>")
 
 
 @functools.lru_cache(maxsize=64)
@@ -398,20 +398,18 @@ def _uncached_tag_line(key: str, value: str) -> str:
 
 
 def _add_way(root, wid: int, nodes: list[int], tags) -> None:
-    way = _element(root, "way", wid)
-    way.extend([f'<nd ref="{nid}"/>' for nid in nodes])
-    _add_tags(way, tags)
+    root.append(_element("way", wid, [f'<nd ref="{nid}"/>' for nid in nodes] + _tag_lines(tags)))
 
 
 def _add_relation(root, rid: int, members: list[tuple[str, int, str]], tags) -> None:
-    relation = _element(root, "relation", rid)
-    relation.extend([f'<member type="{kind}" ref="{ref}" role="{role}"/>'  # plain words: no escaping
-                     for kind, ref, role in members])
+    children = [f'<member type="{kind}" ref="{ref}" role="{role}"/>'  # plain words: no escaping
+                for kind, ref, role in members]
     if tags and tags[0] == ("type", "lanelet"):  # tags that repeat, then the lane's own id
-        relation.extend([_tag_line(key, value) for key, value in tags[:-1]])
-        relation.append(_uncached_tag_line(*tags[-1]))
+        children += [_tag_line(key, value) for key, value in tags[:-1]]
+        children.append(_uncached_tag_line(*tags[-1]))
     else:
-        _add_tags(relation, tags)
+        children += _tag_lines(tags)
+    root.append(_element("relation", rid, children))
 
 
 def _degrees(value: float) -> str:
@@ -424,8 +422,8 @@ def _add_nodes(root, hd: HDMap, ids: _Ids) -> None:
     # A %-template: half the cost of an f-string with a nested format spec, same digits.
     line = (f'<node id="%d" visible="true" version="1" lat="%.{DEGREE_DECIMALS}f"'
             f' lon="%.{DEGREE_DECIMALS}f"/>')
-    root.extend([line % node
-                 for node in zip(node_ids.tolist(), lat.tolist(), lon.tolist(), strict=True)])
+    root.append(Block("\n".join([line % node for node in zip(node_ids.tolist(), lat.tolist(),
+                                                               lon.tolist(), strict=True)])))
 
 
 def _add_bounds(root, hd: HDMap) -> None:
@@ -473,4 +471,4 @@ def lanelet2_tree(hd: HDMap) -> Element:
 
 def write_lanelet2(hd: HDMap, path: Path) -> Path:
     """Write ``hd`` as a lanelet2-format OSM file and return its path."""
-    return write(lanelet2_tree(hd), Path(path), indent="    ", declaration=DECLARATION)
+    return write(lanelet2_tree(hd), Path(path), indent=INDENT, declaration=DECLARATION)
