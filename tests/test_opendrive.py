@@ -217,3 +217,28 @@ def test_netconvert_imports_the_same_network(exported, tmp_path):
     hd_nodes = sum(1 for j in hd.junctions.values() if len(j.roads) != 2)
     assert road_node_count(road_graph(net)) == hd_nodes
     assert net_lane_reachability(lane_graph(net)) == pytest.approx(lane_reachability(hd))
+
+
+def test_text_tree_writes_what_lxml_pretty_print_writes(tmp_path):
+    """The exporters' own XML tree (elements, finished leaves, finished blocks) gives the bytes
+    lxml gives for the same document, at any depth and indent."""
+    from roadweaver_sumo.export.xmltext import Block, Element, leaf, sub, write
+
+    for indent in ("  ", "    "):
+        root = Element("root", ' a="1"')
+        road = sub(root, "road", ' id="r&amp;1"')
+        road.children.append(leaf("speed", ' max="13.9"'))
+        lanes = sub(road, "lanes")
+        lanes.children.append(Block(f'<lane id="-1">\n{indent}<width a="3.2"/>\n'
+                                    f'{indent}<link>\n{indent * 2}<successor id="2"/>\n'
+                                    f'{indent}</link>\n</lane>'))
+        sub(lanes, "empty")
+        root.children.append(Block('<way id="7">\n' + indent + '<nd ref="1"/>\n</way>'))
+        ours = write(root, tmp_path / "ours.xml", indent=indent).read_bytes()
+
+        tree = etree.fromstring(ours)
+        etree.indent(tree, indent)
+        theirs = etree.tostring(tree.getroottree(), pretty_print=True, xml_declaration=True,
+                                encoding="UTF-8")
+        assert ours == theirs
+        assert tree.find("road/lanes/lane/link/successor").get("id") == "2"
