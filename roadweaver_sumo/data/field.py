@@ -4,7 +4,9 @@ Channels (``F[iy, ix, c]``, row ``iy`` runs north from y = 0, column ``ix`` east
 pixel centres at ``((ix + 0.5) r, (iy + 0.5) r)`` with ``r = tile / size`` metres):
 
 0. road probability: ``exp(-d² / 2σ²)``, d the distance from the pixel centre to the nearest
-   centreline and σ half a pixel, so a road is a band about one pixel wide at threshold 0.5;
+   centreline and σ one pixel, so a road is a band about 2.4 pixels wide at threshold 0.5
+   (wide enough for a stride-8 VQ-VAE to place and for the skeletoniser to keep connected,
+   narrow enough that the streets of a 60-80 m block stay apart);
 1. ``p cos 2θ`` and 2. ``p sin 2θ``: the doubled angle of the nearest road (a direction without
    sign) scaled by the road probability p, hence zero off the road;
 3. junction heatmap: a Gaussian (σ one pixel) around every node of degree >= 3;
@@ -27,7 +29,7 @@ from .sampling import sample_roads
 
 FIELD_SIZE = 128
 CHANNELS = ("road", "cos2theta", "sin2theta", "junction", "endpoint", "distance")
-ROAD_SIGMA_PX = 0.5
+ROAD_SIGMA_PX = 1.0
 NODE_SIGMA_PX = 1.0
 DIST_CLIP_M = 200.0
 
