@@ -40,8 +40,8 @@ GENERATOR = "roadweaver-sumo"
 LANE_TAG = "roadweaver:lane"  # the HD map lane id of a lanelet, for loaders and debugging
 DEGREE_DECIMALS = 10  # 1e-10 degrees is about 0.01 mm
 INDENT = "    "  # the indent of the written file
-TRAFFIC_LIGHT_OFFSET_M = 1.0
-MIN_STEP_M = 1e-3  # shorter boundary steps are dropped  # the traffic light way sits this far past the stop line
+TRAFFIC_LIGHT_OFFSET_M = 1.0  # the traffic light way sits this far past the stop line
+MIN_STEP_M = 1e-3  # shorter boundary steps are dropped
 
 # lanelet2 tagging spec (lanelet2_core/doc/LinestringTagging.md)
 DASHED = (("type", "line_thin"), ("subtype", "dashed"))  # lane change allowed both ways
