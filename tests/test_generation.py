@@ -146,3 +146,30 @@ def test_straight_chord_ends_on_a_dead_end_inside_the_block():
     assert chord is not None
     assert not LineString(chord).crosses(LineString(dead_end))
     assert insert_chord(G, chord, MIN_EDGE, index) is not None
+
+
+def test_junctions_closer_than_the_junction_gap_become_one():
+    """Two junctions 15 m apart (each with two more roads) merge into one: SUMO would leave
+    a road of a few centimetres between their junction areas, where traffic locks up. A dead
+    end 15 m long stays: it joins no second junction."""
+    from roadweaver_sumo.expand.planar import MIN_JUNCTION_GAP, contract_short_edges
+    from roadweaver_sumo.roadgraph import add_road, new_road_graph
+
+    G = new_road_graph(1000.0, 1000.0)
+    points = {"a": (500.0, 500.0), "b": (515.0, 500.0), "a1": (500.0, 700.0),
+              "a2": (500.0, 300.0), "b1": (515.0, 700.0), "b2": (515.0, 300.0),
+              "c": (300.0, 500.0), "c1": (300.0, 700.0), "c2": (300.0, 300.0),
+              "stub": (285.0, 500.0)}
+    for name, xy in points.items():
+        G.add_node(name, xy=xy)
+    for u, v in (("a", "b"), ("a", "a1"), ("a", "a2"), ("b", "b1"), ("b", "b2"), ("a", "c"),
+                 ("c", "c1"), ("c", "c2"), ("c", "stub")):
+        add_road(G, u, v, [points[u], points[v]], "local")
+    assert MIN_JUNCTION_GAP > 15.0 > MIN_EDGE
+
+    contract_short_edges(G, MIN_EDGE)
+
+    assert not (G.has_node("a") and G.has_node("b"))  # one junction left of the two
+    kept = "a" if G.has_node("a") else "b"
+    assert G.degree(kept) == 5
+    assert G.has_edge("c", "stub")  # a 15 m dead end is not a gap between junctions

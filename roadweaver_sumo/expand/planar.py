@@ -117,13 +117,24 @@ def merge_nodes(G: nx.Graph, keep: int, drop: int) -> None:
     G.remove_node(drop)
 
 
-def contract_short_edges(G: nx.Graph, min_length: float) -> None:
-    """Merge the two ends of every road shorter than ``min_length`` (the busier end stays)."""
+#: Roads between two junctions (degree >= 3 at both ends) shorter than this are merged into one
+#: junction: the junction areas of multi-lane roads reach about 10 m from their centres, so a
+#: shorter road left SUMO edges a few centimetres long between them, where traffic locked up.
+MIN_JUNCTION_GAP = 20.0
+
+
+def contract_short_edges(G: nx.Graph, min_length: float,
+                         junction_gap: float = MIN_JUNCTION_GAP) -> None:
+    """Merge the two ends of every road shorter than ``min_length``, and of every road between
+    two junctions shorter than ``junction_gap`` (the busier end stays)."""
     changed = True
     while changed:
         changed = False
         for u, v in sorted(G.edges):
-            if G.has_edge(u, v) and edge_length(G, u, v) < min_length:
+            if not G.has_edge(u, v):
+                continue
+            limit = junction_gap if G.degree(u) >= 3 and G.degree(v) >= 3 else min_length
+            if edge_length(G, u, v) < max(limit, min_length):
                 keep, drop = (u, v) if G.degree(u) >= G.degree(v) else (v, u)
                 merge_nodes(G, keep, drop)
                 changed = True
