@@ -116,6 +116,11 @@ def test_traffic_lights_dead_ends_and_geo_origin(built):
     assert lights == ["n0"]
     assert sorted(t.get("id") for t in root.iter("tlLogic")) == lights
     assert sorted(t.get("type") for t in root.iter("tlLogic")) == ["static"]
+    # Every yellow is followed by an all-red clearance phase (SUMO's stranded left-turner).
+    states = [p.get("state") for p in root.find("tlLogic").iter("phase")]
+    for state, following in zip(states, states[1:] + states[:1]):
+        if "y" in state:
+            assert set(following) == {"r"}, states
     location = root.find("location")
     assert "+lat_0=52.52 +lon_0=13.405" in location.get("projParameter")
     assert location.get("netOffset") == "0.00,0.00"
