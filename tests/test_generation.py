@@ -148,6 +148,37 @@ def test_straight_chord_ends_on_a_dead_end_inside_the_block():
     assert insert_chord(G, chord, MIN_EDGE, index) is not None
 
 
+def test_fill_continues_a_side_street_into_a_crossroads():
+    """A T-junction on a block's edge whose stem lies outside the block: the continuation
+    road starts at that junction, straight on from the stem, and crosses the block, so the T
+    becomes a four-way junction with one new node (the far T). A Y-junction (no straight bar)
+    offers no continuation."""
+    from roadweaver_sumo.expand.edge_index import EdgeIndex
+    from roadweaver_sumo.expand.fill import _NodePoints, continuation_chord, faces, insert_chord
+    from roadweaver_sumo.tensor_field import from_angles
+
+    ring = np.array([[0, 0], [800, 0], [800, 800], [0, 800], [0, 0]], float)
+    bar = np.array([[0, 400], [800, 400]], float)
+    stem = np.array([[400, 0], [400, 400]], float)
+    G = build_planar_graph([(ring, "collector"), (bar, "local"), (stem, "local")], 800, 800)
+    top = max(faces(G), key=lambda f: f.centroid.y)
+    field = from_angles(np.full((8, 8), np.pi / 2), np.ones((8, 8)), 100.0)  # north-south
+    nodes, index = _NodePoints(G), EdgeIndex(G)
+    chord = continuation_chord(top, nodes, field, None, MIN_EDGE, MIN_ANGLE)
+    assert chord is not None
+    assert np.allclose(chord[0], [400, 400]) and np.allclose(chord[-1], [400, 800])
+    t_junction = nodes.at(chord[0])
+    before = road_node_count(G)
+    assert insert_chord(G, chord, MIN_EDGE, index, start_node=t_junction) is not None
+    assert G.degree(t_junction) == 4
+    assert road_node_count(G) == before + 1
+
+    y_bar = np.array([[0, 200], [400, 400], [800, 200]], float)  # a 127° bar: not straight
+    G = build_planar_graph([(ring, "collector"), (y_bar, "local"), (stem, "local")], 800, 800)
+    top = max(faces(G), key=lambda f: f.centroid.y)
+    assert continuation_chord(top, _NodePoints(G), field, None, MIN_EDGE, MIN_ANGLE) is None
+
+
 def test_junctions_closer_than_the_junction_gap_become_one():
     """Two junctions 15 m apart (each with two more roads) merge into one: SUMO would leave
     a road of a few centimetres between their junction areas, where traffic locks up. A dead

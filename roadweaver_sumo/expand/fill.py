@@ -2,9 +2,12 @@
 
 Density is a closed loop (DESIGN.md): each round splits the largest block (a face of the planar
 graph) with a local road traced through the same tensor field from the block's interior to its
-boundary on both sides. A road across a face adds exactly its two T-junctions, so the node count
-moves in steps of two and cannot overshoot by more than one. When there are too many road nodes,
-local roads that are not bridges are removed, shortest first.
+boundary on both sides. A road across a face adds exactly its two T-junctions. Some roads
+instead continue a side street across the block from a T-junction on its edge: that T becomes a
+crossroads, as real streets run on through junctions (real tiles have 17 % four-way junctions;
+without continuations the fill makes T-junctions only), and the road adds one node. The node
+count moves in steps of one or two, so it overshoots the target by at most one. When there are too many road nodes, local roads that are not
+bridges are removed, shortest first.
 """
 
 from __future__ import annotations
@@ -26,6 +29,8 @@ from ..tensor_field import TensorField
 from .edge_index import EdgeIndex
 
 STEP = 20.0  # metres per Euler step of a fill road (locals are short and gently curved)
+CONTINUE_SHARE = 0.5  # share of blocks first offered a continuation of a side street
+STRAIGHT_CAP = 150.0  # degrees: the two roads of a T's bar are at least this close to straight
 
 
 def faces(G: nx.Graph) -> list[Polygon]:
@@ -42,20 +47,24 @@ def fill_to_density(
     min_edge: float,
     min_angle: float,
 ) -> None:
-    """Split blocks until ``road_node_count(G) >= target - 1`` or no block can be split."""
+    """Split blocks until ``road_node_count(G) >= target`` or no block can be split."""
     heap = [(-f.area, k, f) for k, f in enumerate(sorted(faces(G), key=lambda f: f.bounds))]
     heapq.heapify(heap)
     counter = len(heap)
     index = EdgeIndex(G)
     nodes = _NodePoints(G)
     count = road_node_count(G)
-    while heap and count < target - 1:
+    while heap and count < target:
         _, _, face = heapq.heappop(heap)
         ends = None
-        for make_chord in (split_chord, partial(straight_chord, roads=index)):
+        makers = [split_chord, partial(straight_chord, roads=index)]
+        if rng.random() < CONTINUE_SHARE:
+            makers.insert(0, continuation_chord)
+        for make_chord in makers:
             chord = make_chord(face, nodes, field, rng, min_edge, min_angle)
             if chord is not None:
-                ends = insert_chord(G, chord, min_edge, index)
+                start = nodes.at(chord[0])
+                ends = insert_chord(G, chord, min_edge, index, start_node=start)
                 nodes.update()  # a refused chord may still have split a road at its first end
             if ends is not None:
                 break
@@ -78,8 +87,10 @@ class _NodePoints:
     def __init__(self, G: nx.Graph):
         self.G = G
         self.top = max(G.nodes, default=-1)
+        self.ids = list(G.nodes)
         self.tree = cKDTree(np.array([G.nodes[n]["xy"] for n in G.nodes]).reshape(-1, 2))
         self.added = np.zeros((0, 2))
+        self.added_ids: list = []
 
     def update(self) -> None:
         """Take in the nodes added to ``G`` since the last call (new nodes get the next ids and
@@ -88,8 +99,20 @@ class _NodePoints:
         while self.top + 1 in self.G:
             self.top += 1
             new.append(self.G.nodes[self.top]["xy"])
+            self.added_ids.append(self.top)
         if new:
             self.added = np.vstack([self.added, new])
+
+    def at(self, p, tolerance: float = 1e-6):
+        """The node at ``p`` (within ``tolerance``), or None."""
+        near = self.tree.query_ball_point(p, tolerance)
+        if near:
+            return self.ids[min(near)]
+        if len(self.added):
+            k = int(np.argmin(np.hypot(*(self.added - p).T)))
+            if np.hypot(*(self.added[k] - p)) <= tolerance:
+                return self.added_ids[k]
+        return None
 
     def any_within(self, p: np.ndarray, radius: float) -> bool:
         """Whether a node lies closer than ``radius`` to ``p`` (exactly as an np.hypot test over
@@ -129,6 +152,50 @@ def split_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rng, min_
                         min_edge, min_angle)
         if chord is not None:
             return chord
+    return None
+
+
+def continuation_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rng, min_edge,
+                       min_angle):
+    """A local road that continues a side street across ``face``: from a T-junction on the
+    block's edge whose stem lies outside the block, straight on through the junction and then
+    along the field to the far side. Of the T-junctions whose continuation points into the
+    block, the one aimed closest to the block's centre is tried first."""
+    _, _, centre = _axes(face)
+    candidates = []
+    for xy in np.asarray(face.exterior.coords)[:-1]:
+        node = nodes.at(xy)
+        if node is None or nodes.G.degree(node) != 3:
+            continue
+        ahead = _continuation(nodes.G, node)
+        if ahead is None or not face.contains(Point(xy + 2.0 * ahead)):
+            continue
+        off = centre - xy
+        miss = abs(float(ahead[0] * off[1] - ahead[1] * off[0]))  # centre's distance from the line
+        candidates.append((miss, node, xy, ahead))
+    for _, node, xy, ahead in sorted(candidates, key=lambda c: c[:2])[:3]:
+        path = _trace_in_face(face, xy + 1.0 * ahead, ahead, field)
+        if path is None:
+            continue
+        chord = np.vstack([xy, path])
+        if _ends_ok(face, nodes, chord, min_edge, min_angle, check_start=False):
+            return chord
+    return None
+
+
+def _continuation(G: nx.Graph, node) -> np.ndarray | None:
+    """The unit direction straight on from a T-junction's stem through ``node``, or None when
+    no two of its three roads form a near-straight bar (a Y, not a T)."""
+    xy = np.asarray(G.nodes[node]["xy"], float)
+    leaving = []
+    for other in sorted(G.neighbors(node)):
+        road = LineString(edge_coords(G, node, other))
+        ahead = road.interpolate(min(10.0, road.length / 2))  # past any kink at the junction
+        leaving.append(_unit(np.asarray(ahead.coords[0]) - xy))
+    for k, stem in enumerate(leaving):
+        bar = [d for j, d in enumerate(leaving) if j != k]
+        if float(bar[0] @ bar[1]) <= math.cos(math.radians(STRAIGHT_CAP)):
+            return -stem
     return None
 
 
@@ -225,12 +292,13 @@ def _trace_in_face(face: Polygon, start, d, field: TensorField):
 
 
 def _ends_ok(face: Polygon, nodes: _NodePoints, chord, min_edge: float, min_angle: float,
-             met=()) -> bool:
+             met=(), check_start: bool = True) -> bool:
     """Both ends meet the block edge (or a road in ``met``) at a decent angle and away from
-    existing junctions."""
+    existing junctions (the far end only, for a chord that starts at a junction)."""
     if LineString(chord).length < 3 * min_edge:
         return False
-    for end, inner in ((chord[0], chord[1]), (chord[-1], chord[-2])):
+    ends = ((chord[0], chord[1]), (chord[-1], chord[-2]))
+    for end, inner in ends if check_start else ends[1:]:
         if nodes.any_within(end, 2.5 * min_edge):
             return False
         ring = min([face.exterior, *face.interiors, *met], key=lambda r: r.distance(Point(end)))
@@ -245,18 +313,22 @@ def _ends_ok(face: Polygon, nodes: _NodePoints, chord, min_edge: float, min_angl
 
 
 def insert_chord(
-    G: nx.Graph, chord: np.ndarray, min_edge: float, index: EdgeIndex
+    G: nx.Graph, chord: np.ndarray, min_edge: float, index: EdgeIndex, start_node=None
 ) -> tuple | None:
-    """Split the road(s) the chord ends on and add the chord as a local road between them.
+    """Split the road(s) the chord ends on and add the chord as a local road between them
+    (from ``start_node`` itself, if given: a chord that starts at a junction).
 
     Refused when the chord touches any road other than those it ends on (a dead-end road
     inside the block, say), so the graph stays planar without re-noding. Returns the chord's
     end nodes, or None when refused."""
-    touching = index.near(LineString(chord), 0.5)
-    if not 1 <= len(touching) <= 2:
+    line = LineString(chord)
+    if start_node is not None:  # the junction's own roads meet the chord's first metres
+        line = shapely.ops.substring(line, 2.0, line.length)
+    touching = index.near(line, 0.5)
+    if not 1 <= len(touching) <= (1 if start_node is not None else 2):
         return None
-    nodes = []
-    for point in (chord[0], chord[-1]):
+    nodes = [] if start_node is None else [start_node]
+    for point in (chord[0], chord[-1])[len(nodes):]:
         # Look the edge up again for the second end: splitting for the first may have cut it.
         near = index.near(Point(point), 1.0)
         if not near:
