@@ -9,7 +9,9 @@ Usage: python bench/evaluate_learned.py [--osm-dir ../shared/data/osm] [--seeds 
 * realism: distance to real 2 km tiles (unrotated crops of the OSM extracts, road-node density
   40..80) of learned and procedural maps at density 60: degree mix (L1 between mean shares of
   degree 1/3/4/5+ road nodes), dead-end share, bearing entropy (difference of means) and edge
-  length distribution (1-D Wasserstein distance, metres).
+  length distribution (1-D Wasserstein distance, metres). The degree figures twice: over all
+  road nodes, and over those at least 100 m inside the map (a real tile's roads end where it
+  was cut, a generated map's end on its frame road).
 * seams: a 6 km x 6 km learned map; road length and road-node density per 500 m band along x
   and y, and the jump between neighbouring bands at sampling-window borders vs elsewhere.
 """
@@ -59,12 +61,19 @@ def skeleton_only(spec: ScenarioSpec):
     return G
 
 
-def shape_figures(G) -> dict:
-    deg = [d for _, d in G.degree() if d != 2]
+def shape_figures(G, margin: float = 0.0) -> dict:
+    """Degree mix, dead-end share, bearing entropy, φ and edge lengths. With ``margin``, the
+    degree figures count only road nodes at least that far inside the map: a real tile's roads
+    end where the tile was cut and a generated map's run into its frame road, and neither is a
+    junction or dead end of the street network."""
+    w, h = G.graph["width"], G.graph["height"]
+    inside = [n for n in G.nodes if margin <= G.nodes[n]["xy"][0] <= w - margin
+              and margin <= G.nodes[n]["xy"][1] <= h - margin]
+    deg = [d for _, d in G.degree(inside) if d != 2]
     n = max(len(deg), 1)
     return {
         "degree_mix": [sum(lo <= d <= hi for d in deg) / n for lo, hi in DEGREE_BINS],
-        "dead_end": metrics.dead_end_ratio(G),
+        "dead_end": sum(d == 1 for d in deg) / n,
         "H": metrics.bearing_entropy(G),
         "phi": metrics.orientation_order(G),
         "edge_lengths": [edge_length(G, u, v) for u, v in G.edges],
@@ -150,37 +159,49 @@ def distance(a: dict, b: dict) -> dict:
             "edge_length_w1_m": wasserstein_distance(a["edge_lengths"], b["edge_lengths"])}
 
 
+MARGINS = (0.0, 100.0)  # whole map, and road nodes at least 100 m inside it
+
+
 def real_summary(osm_dir: Path, cache: Path) -> dict:
-    """Figures of the real tiles (cached: reading and cutting every extract takes minutes)."""
+    """Figures of the real tiles per margin (cached: reading and cutting every extract takes
+    minutes)."""
     if cache.is_file():
         return json.loads(cache.read_text())
     tiles = real_tiles(osm_dir)
-    real = summarise([shape_figures(G) for G in tiles])
-    real["tiles"] = len(tiles)
+    real = {}
+    for margin in MARGINS:
+        real[str(margin)] = summarise([shape_figures(G, margin) for G in tiles])
+        real[str(margin)]["tiles"] = len(tiles)
     cache.parent.mkdir(parents=True, exist_ok=True)
     cache.write_text(json.dumps(real))
     return real
 
 
-def part_realism(seeds, osm_dir: Path, cache: Path = Path("bench/results/real_tiles.json")):
+def part_realism(seeds, osm_dir: Path, cache: Path = Path("bench/results/real_tiles_v2.json")):
     real = real_summary(osm_dir, cache)
-    out = {"real": {k: v for k, v in real.items() if k != "edge_lengths"}}
+    out = {}
+    graphs = {}
     for skeleton in ("learned", "procedural"):
-        figs, failed = [], 0
+        graphs[skeleton], failed = [], 0
         for s in seeds:
             try:
-                G = road_graph(ScenarioSpec(density=60, vehicles=10, seed=s, skeleton=skeleton))
+                spec = ScenarioSpec(density=60, vehicles=10, seed=s, skeleton=skeleton)
+                graphs[skeleton].append(road_graph(spec))
             except RoadweaverError:
                 failed += 1
-                continue
-            figs.append(shape_figures(G))
-        mine = summarise(figs)
-        out[skeleton] = {"figures": {k: v for k, v in mine.items() if k != "edge_lengths"},
-                         "maps": len(figs), "failed": failed,
-                         "distance_to_real": distance(mine, real)}
-        print(f"{skeleton}: {len(figs)} maps, {failed} failed; figures {out[skeleton]['figures']}")
-        print(f"{skeleton:10s} distance to real tiles: {out[skeleton]['distance_to_real']}")
-    print(f"real tiles: {out['real']}")
+        print(f"{skeleton}: {len(graphs[skeleton])} maps, {failed} failed")
+    for margin in MARGINS:
+        ref = real[str(margin)]
+        part = out[f"margin {margin:g} m"] = {
+            "real": {k: v for k, v in ref.items() if k != "edge_lengths"}}
+        print(f"-- road nodes at least {margin:g} m inside the map --")
+        for skeleton, maps in graphs.items():
+            mine = summarise([shape_figures(G, margin) for G in maps])
+            part[skeleton] = {"figures": {k: v for k, v in mine.items() if k != "edge_lengths"},
+                              "maps": len(maps), "distance_to_real": distance(mine, ref)}
+            print(f"{skeleton:10s} figures {part[skeleton]['figures']}")
+            print(f"{skeleton:10s} distance to real tiles: {part[skeleton]['distance_to_real']}")
+        print(f"real tiles: {part['real']}")
     return out
 
 
