@@ -87,10 +87,9 @@ class _NodePoints:
     def __init__(self, G: nx.Graph):
         self.G = G
         self.top = max(G.nodes, default=-1)
-        self.ids = list(G.nodes)
         self.tree = cKDTree(np.array([G.nodes[n]["xy"] for n in G.nodes]).reshape(-1, 2))
         self.added = np.zeros((0, 2))
-        self.added_ids: list = []
+        self.by_xy = {tuple(G.nodes[n]["xy"]): n for n in G.nodes}
 
     def update(self) -> None:
         """Take in the nodes added to ``G`` since the last call (new nodes get the next ids and
@@ -98,21 +97,16 @@ class _NodePoints:
         new = []
         while self.top + 1 in self.G:
             self.top += 1
-            new.append(self.G.nodes[self.top]["xy"])
-            self.added_ids.append(self.top)
+            xy = self.G.nodes[self.top]["xy"]
+            new.append(xy)
+            self.by_xy[tuple(xy)] = self.top
         if new:
             self.added = np.vstack([self.added, new])
 
-    def at(self, p, tolerance: float = 1e-6):
-        """The node at ``p`` (within ``tolerance``), or None."""
-        near = self.tree.query_ball_point(p, tolerance)
-        if near:
-            return self.ids[min(near)]
-        if len(self.added):
-            k = int(np.argmin(np.hypot(*(self.added - p).T)))
-            if np.hypot(*(self.added[k] - p)) <= tolerance:
-                return self.added_ids[k]
-        return None
+    def at(self, p):
+        """The node exactly at ``p`` (a vertex of a block's boundary, say), or None: roads end
+        exactly on their nodes' coordinates."""
+        return self.by_xy.get((float(p[0]), float(p[1])))
 
     def any_within(self, p: np.ndarray, radius: float) -> bool:
         """Whether a node lies closer than ``radius`` to ``p`` (exactly as an np.hypot test over
