@@ -81,8 +81,10 @@ def fill_to_density(
 
 class _NodePoints:
     """The junction positions of ``G`` for "is any node near this point" (asked for every chord
-    end): a k-d tree over the nodes at the start plus the few added since, instead of an array of
-    every node rebuilt for each block."""
+    end): a k-d tree over the nodes, plus the few added since it was built (rebuilt when those
+    reach REBUILD_SHARE of it), instead of an array of every node rebuilt for each block."""
+
+    REBUILD_SHARE = 0.1
 
     def __init__(self, G: nx.Graph):
         self.G = G
@@ -102,6 +104,9 @@ class _NodePoints:
             self.by_xy[tuple(xy)] = self.top
         if new:
             self.added = np.vstack([self.added, new])
+        if len(self.added) > max(64, self.REBUILD_SHARE * self.tree.n):
+            self.tree = cKDTree(np.vstack([self.tree.data, self.added]))
+            self.added = np.zeros((0, 2))
 
     def at(self, p):
         """The node exactly at ``p`` (a vertex of a block's boundary, say), or None: roads end
