@@ -40,7 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     make.add_argument("--size", default="2000", help="map size in metres: 2000 or 3000x2000")
     make.add_argument("--seed", type=int, default=0)
     make.add_argument("--style", default="mixed", help=f"one of {', '.join(STYLES)}")
-    make.add_argument("--skeleton", default="procedural", help=f"one of {', '.join(SKELETONS)}")
+    make.add_argument("--skeleton", default="learned", help=f"one of {', '.join(SKELETONS)}")
     make.add_argument("--duration", type=float, default=3600.0, help="demand horizon, seconds")
     make.add_argument("--out", type=Path, help="output folder (default ./scenarios/<name>)")
     make.add_argument("--force", action="store_true", help="replace an existing output folder")

@@ -36,7 +36,7 @@ class ScenarioSpec:
     height: float = 2000.0
     seed: int = 0
     style: str = "mixed"
-    skeleton: str = "procedural"
+    skeleton: str = "learned"
     duration: float = 3600.0
     geo_origin: tuple[float, float] = DEFAULT_GEO_ORIGIN
     version: str = field(default=__version__)
