@@ -126,24 +126,6 @@ def test_traffic_lights_dead_ends_and_geo_origin(built):
     assert location.get("netOffset") == "0.00,0.00"
 
 
-def test_left_turns_without_lights_wait_at_the_stop_line(built):
-    """At a junction without traffic lights a left turn's internal junction sits at the start
-    of its connection (contPos 0): cars wait for oncoming traffic before the junction, not at a
-    point inside it that the oncoming inner lane passes within centimetres of. Left turns at
-    traffic lights keep SUMO's waiting point (the all-red clears them)."""
-    _, _, net = built
-    root, connections, _ = _read_net(net)
-    kind = {j.get("id"): j.get("type") for j in root.iter("junction")}
-    lefts = [c for c in connections if c.get("dir") == "l" and c.get("via")]
-    at = {c: c.get("via")[1:].split("_")[0] for c in lefts}  # ":n3_5_0" -> "n3"
-    # yielding ("m") left turns at priority junctions; a bend at a two-road node is "M"
-    unlit = [c for c in lefts if kind[at[c]] != "traffic_light" and c.get("state") == "m"]
-    lit = [c for c in lefts if kind[at[c]] == "traffic_light"]
-    assert unlit and lit
-    assert all(float(c.get("contPos")) == 0.0 for c in unlit)
-    assert all(c.get("contPos") is None for c in lit)
-
-
 def test_net_is_byte_identical_across_runs(built, tmp_path):
     _, out, _ = built
     _export(tmp_path)

@@ -22,7 +22,6 @@ from ..hdmap.model import DIRECTIONS, HDMap, edge_id
 
 XSI = "http://www.w3.org/2001/XMLSchema-instance"
 NO_LANE_CHANGE = "emergency"  # the classes that may change lanes inside a junction
-STOP_LINE = "0"  # contPos: the connection's internal junction at its start, so cars wait there
 METRES_PER_DEGREE = 111_320.0  # at the equator; only used for the informative origBoundary
 
 
@@ -106,21 +105,6 @@ def lane_connections(hd: HDMap) -> list[tuple[str, str, int, int]]:
     return sorted(found)
 
 
-def left_turns_without_lights(hd: HDMap) -> set[tuple[str, str, int, int]]:
-    """The connections (as :func:`lane_connections`) of left turns at junctions without
-    traffic lights."""
-    found = set()
-    for lane in hd.road_lanes():
-        for via in lane.successors:
-            connector = hd.lanes[via]
-            if (connector.movement == "left"
-                    and hd.junctions[connector.junction].type != "traffic_light"):
-                for succ in connector.successors:
-                    target = hd.lanes[succ]
-                    found.add((lane.edge, target.edge, lane.index, target.index))
-    return found
-
-
 def plain_connections(hd: HDMap) -> etree._Element:
     """``<connections>``: exactly the lane graph's connections; edges without any are declared
     empty so that netconvert does not invent connections for them.
@@ -129,13 +113,7 @@ def plain_connections(hd: HDMap) -> etree._Element:
     several lanes, and SUMO lets cars change lanes on it. A car stuck inside a junction behind
     spill-back would then shift sideways into the path of cross traffic that has since got
     green (3 junction collisions in the 10 km, 5000-vehicle scenario). No lane changes inside
-    junctions, as the road rules say: only emergency vehicles may.
-
-    A left turn at a junction without traffic lights waits for oncoming traffic at its stop
-    line (``contPos`` 0), not at SUMO's waiting point inside the junction: where the two
-    directions of a road are close, that point lies so near the oncoming inner lane that a car
-    waiting there is hit (learned mixed density 10 seed 2: 1 junction collision in 100
-    validated scenarios)."""
+    junctions, as the road rules say: only emergency vehicles may."""
     root = _root("connections", "connections_file.xsd")
     connections = lane_connections(hd)
     connected = {c[0] for c in connections}
@@ -144,13 +122,10 @@ def plain_connections(hd: HDMap) -> etree._Element:
         if edge not in connected:
             etree.SubElement(root, "connection", {"from": edge})
     parallel = Counter((src, dst) for src, dst, _, _ in connections)
-    wait_at_stop_line = left_turns_without_lights(hd)
     for src, dst, src_lane, dst_lane in connections:
         attrs = {"from": src, "to": dst, "fromLane": str(src_lane), "toLane": str(dst_lane)}
         if parallel[src, dst] > 1:
             attrs.update(changeLeft=NO_LANE_CHANGE, changeRight=NO_LANE_CHANGE)
-        if (src, dst, src_lane, dst_lane) in wait_at_stop_line:
-            attrs["contPos"] = STOP_LINE
         etree.SubElement(root, "connection", attrs)
     return root
 
