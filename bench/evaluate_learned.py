@@ -283,8 +283,10 @@ def main() -> None:
         elif part == "seams":
             results[part] = part_seams(seeds)
         print(f"[{part}: {time.perf_counter() - start:.0f} s]", flush=True)
+    # Parts run separately (condition over 10 seeds, the rest over 5) land in one file.
     args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(results, indent=1))
+    earlier = json.loads(args.json.read_text()) if args.json.is_file() else {}
+    args.json.write_text(json.dumps(earlier | results, indent=1))
 
 
 if __name__ == "__main__":
