@@ -156,20 +156,13 @@ def merge_close_nodes(G: nx.Graph, radius: float) -> None:
         merge_nodes(G, keep, drop)
 
 
-def dissolve_degree_two(G: nx.Graph, min_angle_deg: float = 0.0,
-                        cache: dict | None = None) -> None:
-    """Join the two roads at a degree-2 node into one, unless that would duplicate a road or
-    the two meet at less than ``min_angle_deg`` (the joined road would double back: that V is
-    :func:`remove_sharp_angles`' to resolve)."""
-    limit = math.radians(min_angle_deg)
+def dissolve_degree_two(G: nx.Graph) -> None:
+    """Join the two roads at a degree-2 node into one, unless that would duplicate a road."""
     for n in sorted(G.nodes):
         if G.degree(n) != 2:
             continue
         a, b = sorted(G.neighbors(n))
         if a == b or G.has_edge(a, b):
-            continue
-        (a1, _), (a2, _) = departure_angles(G, n, cache=cache)
-        if min((a2 - a1) % (2 * math.pi), (a1 - a2) % (2 * math.pi)) < limit:
             continue
         ca, cb = edge_coords(G, a, n), edge_coords(G, n, b)
         cls = higher_class(G.edges[a, n]["road_class"], G.edges[n, b]["road_class"])
@@ -202,15 +195,11 @@ def departure_angles(
 
 
 def remove_sharp_angles(G: nx.Graph, min_angle_deg: float, cache: dict | None = None) -> int:
-    """Drop the minor road of every pair meeting at a node at less than ``min_angle_deg``.
-
-    Degree-2 nodes count too: two roads left in a sharp V (a third road at the node removed)
-    would otherwise be joined into one road that doubles back on itself, a hairpin whose lanes
-    fold over each other (a learned map had one 3 m from its own junction, and a car hit)."""
+    """Drop the minor road of every pair meeting at a junction at less than ``min_angle_deg``."""
     removed = 0
     limit = math.radians(min_angle_deg)
     for n in sorted(G.nodes):
-        if n not in G or G.degree(n) < 2:
+        if n not in G or G.degree(n) < 3:
             continue
         angles = departure_angles(G, n, cache=cache)
         for k, (a1, w1) in enumerate(angles):
@@ -347,7 +336,7 @@ def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: f
             pass
         prune_stubs(G, stub, margin)
         keep_largest_component(G)
-        dissolve_degree_two(G, min_angle, bearings)
+        dissolve_degree_two(G)
         if (G.number_of_nodes(), G.number_of_edges()) == before:
             break
     smooth_bends(G)
