@@ -177,11 +177,16 @@ def main() -> None:
         size, density, seed = args.child.split(",")
         child(float(size), float(density), int(seed), args.skeleton, args.folder)
         return
+    with tempfile.TemporaryDirectory(prefix="rw-scale-") as work:  # 10 km maps: ~0.5 GB
+        measure(args, Path(work))
+
+
+def measure(args, work: Path) -> None:
+    """Time every size, then compare quality at the first size; print a table, write JSON."""
     sizes = [float(s) for s in args.sizes.split(",")]
     repeats = [int(r) for r in args.repeats.split(",")]
     results = {"contention_before": contention(), "skeleton": args.skeleton,
                "density": args.density, "sizes": {}}
-    work = Path(tempfile.mkdtemp(prefix="rw-scale-"))
     print(f"contention: {results['contention_before']}")
     print("size_m " + " ".join(f"{s:>10s}" for s in STAGES)
           + "  generation  total  gen/km2  peak_MB  nodes  netgenerate  ratio")
