@@ -98,8 +98,12 @@ def skeleton_graph(mask: np.ndarray, res: float, tile_m: float,
     node = _key_clusters(A, degree)
     xy = (pix[:, ::-1] + 0.5) * res
     G = new_road_graph(tile_m, tile_m * mask.shape[0] / mask.shape[1])
-    for n in np.unique(node[node >= 0]):
-        G.add_node(int(n), xy=tuple(float(v) for v in xy[node == n].mean(axis=0)))
+    keyed = node >= 0
+    ids, cluster = np.unique(node[keyed], return_inverse=True)
+    size = np.bincount(cluster)
+    centre = np.column_stack([np.bincount(cluster, weights=xy[keyed, k]) / size for k in (0, 1)])
+    for n, (x, y) in zip(ids.tolist(), centre.tolist(), strict=True):
+        G.add_node(n, xy=(x, y))
     fresh = node_counter(G, start=len(pix) + 1)
     for a, b, path in _trace(A, node):
         for n, p in ((a, path[0]), (b, path[-1])):

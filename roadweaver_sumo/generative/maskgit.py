@@ -134,21 +134,12 @@ class MaskGIT(nn.Module):
             if guidance > 0:  # conditional and unconditional rows in one batch
                 h = self.trunk(tokens.repeat(2, 1, 1), masked.repeat(2, 1), cond.repeat(2, 1),
                                torch.cat([~drop_all, drop_all]))
+                h_cond, h_free = h[:B][masked], h[B:][masked]
             else:
-                h = self.trunk(tokens, masked, cond)
-            choice = torch.zeros(B, n, G, dtype=torch.long)
+                h_cond, h_free = self.trunk(tokens, masked, cond)[masked], None
+            choice, logp = self._sample_masked(h_cond, h_free, generator, guidance, temperature)
             conf = torch.zeros(B, n)
-            for gi in range(G):  # the chain: group gi given the groups sampled before it
-                earlier = choice[..., :gi]
-                logits = self.group_logits(h, gi, earlier.repeat(2, 1, 1) if guidance > 0
-                                           else earlier)
-                if guidance > 0:
-                    logits = logits[:B] + guidance * (logits[:B] - logits[B:])
-                logp = F.log_softmax(logits / max(temperature, 1e-4), dim=-1)
-                gumbel = -torch.log(-torch.log(
-                    torch.rand(logp.shape, generator=generator).clamp_(1e-9, 1 - 1e-9)))
-                choice[..., gi] = (logp + gumbel).argmax(-1)
-                conf += torch.gather(logp, -1, choice[..., gi, None]).squeeze(-1)
+            conf[masked] = logp
             ratio = math.cos(0.5 * math.pi * (t + 1) / steps)
             keep_masked = torch.floor(unknown0.float() * ratio).long()  # per row
             anneal = 1.0 - (t + 1) / steps
@@ -158,6 +149,33 @@ class MaskGIT(nn.Module):
             rank = order.argsort(dim=1)
             still = rank < keep_masked[:, None]
             newly = masked & ~still
-            tokens = torch.where(newly[..., None], choice, tokens)
+            sampled = tokens.clone()
+            sampled[masked] = choice
+            tokens = torch.where(newly[..., None], sampled, tokens)
             masked = still & masked
         return tokens
+
+    def _sample_masked(self, h_cond: torch.Tensor, h_free: torch.Tensor | None,
+                       generator: torch.Generator, guidance: float, temperature: float):
+        """Tokens (m, G) for the m masked positions with trunk features ``h_cond`` (and
+        ``h_free`` without the condition, for guidance), and their summed log-probability (m,).
+
+        Only masked positions are drawn: the others are context and keep their tokens, and in
+        an in-painting window they are most of it. Each group is one categorical draw (inverse
+        CDF of one uniform number), the same distribution as Gumbel-max at a 512th of the
+        random numbers."""
+        m, G = h_cond.shape[0], self.cfg.groups
+        choice = torch.zeros(m, G, dtype=torch.long)
+        conf = torch.zeros(m)
+        for gi in range(G):  # the chain: group gi given the groups sampled before it
+            logits = self.group_logits(h_cond, gi, choice[:, :gi])
+            if h_free is not None:
+                free = self.group_logits(h_free, gi, choice[:, :gi])
+                logits = logits + guidance * (logits - free)
+            logp = F.log_softmax(logits / max(temperature, 1e-4), dim=-1)
+            cdf = logp.exp().cumsum(dim=-1)
+            u = torch.rand(m, 1, generator=generator) * cdf[:, -1:]
+            drawn = torch.searchsorted(cdf, u, right=True).clamp_(max=logp.shape[-1] - 1)
+            choice[:, gi] = drawn[:, 0]
+            conf += logp.gather(-1, drawn)[:, 0]
+        return choice, conf
