@@ -39,6 +39,56 @@ def test_clean_up_leaves_no_short_roads_or_sharp_junctions():
             assert gaps.min() >= math.radians(MIN_ANGLE) - 1e-6
 
 
+def _sharpest_turn_deg(coords: np.ndarray, reach: float = 5.0) -> float:
+    """The largest change of direction along a polyline, each direction taken over ``reach``
+    metres (a hairpin smoothed into many tiny segments turns little at any one vertex)."""
+    line = LineString(coords)
+    worst = 0.0
+    for s in np.arange(reach, line.length - reach, 1.0):
+        a, p, b = (np.asarray(line.interpolate(x).coords[0]) for x in (s - reach, s, s + reach))
+        d1, d2 = p - a, b - p
+        cos = float(d1 @ d2) / max(float(np.hypot(*d1) * np.hypot(*d2)), 1e-9)
+        worst = max(worst, math.degrees(math.acos(min(max(cos, -1.0), 1.0))))
+    return worst
+
+
+def test_clean_up_never_joins_a_sharp_v_into_a_hairpin():
+    """Two roads meeting at a degree-2 node at 14° (a V): joining them would make one road
+    that runs out 500 m and comes back, whose lanes fold over each other. The clean-up drops
+    the V's minor road instead, as it does for a sharp pair at a junction."""
+    from roadweaver_sumo.expand.planar import clean
+    from roadweaver_sumo.skeleton.model import perimeter
+
+    ring = perimeter(1000, 1000)
+    arms = [np.array([[15.0, 400.0], [500.0, 450.0]]), np.array([[500.0, 450.0], [15.0, 520.0]])]
+    # dead-end streets off the ring, so that no ring road joins the arms' two ends directly
+    streets = [np.array([[15.0, 460.0], [200.0, 460.0]]), np.array([[985.0, 500.0], [800.0, 500.0]])]
+    roads = [(ring, "collector")] + [(line, "local") for line in streets + arms]
+    G = build_planar_graph(roads, 1000, 1000)
+    clean(G, MIN_EDGE, MIN_ANGLE, stub=MIN_EDGE, margin=1.0)
+    assert max(_sharpest_turn_deg(G.edges[e]["coords"]) for e in G.edges) < 120.0  # joined: 140
+    tip = [n for n in G.nodes if np.allclose(G.nodes[n]["xy"], [500.0, 450.0])]
+    assert len(tip) == 1 and G.degree(tip[0]) == 1  # one arm of the V is left, a cul-de-sac
+
+
+def test_merging_a_ring_node_keeps_the_ring_on_the_border():
+    """A busy junction 11 m inside the map, joined to the perimeter ring by a short road: the
+    merged junction stays on the ring. Kept where the busy one was, it bent the ring's roads
+    inward across the roads there, and a 10 km map's blocks along the ring stopped closing."""
+    from roadweaver_sumo.expand.planar import contract_short_edges, on_perimeter
+    from roadweaver_sumo.skeleton.model import perimeter
+
+    inner = [974.0, 500.0]
+    spokes = [np.array([[985.0, 500.0], inner])] + [
+        np.array([inner, end]) for end in ([700.0, 500.0], [800.0, 700.0], [800.0, 300.0])]
+    roads = [(perimeter(1000, 1000), "collector")] + [(line, "local") for line in spokes]
+    G = build_planar_graph(roads, 1000, 1000)
+    contract_short_edges(G, MIN_EDGE)
+    (junction,) = [n for n in G.nodes if G.degree(n) == 5]
+    assert np.allclose(G.nodes[junction]["xy"], [985.0, 500.0])
+    assert sum(on_perimeter(G, junction, w) for w in G.neighbors(junction)) == 2
+
+
 def test_style_shows_in_bearing_entropy():
     _, grid = generate(density=30, width=1500, height=1500, style="grid", seed=0)
     _, organic = generate(density=30, width=1500, height=1500, style="organic", seed=0)
