@@ -234,7 +234,12 @@ def part_seams(seeds, size: float = 6000.0):
     for seed in seeds:
         spec = ScenarioSpec(density=30, vehicles=10, width=size, height=size, seed=seed,
                             skeleton="learned")
-        G = expand_skeleton(spec, make_skeleton(spec))
+        try:
+            G = expand_skeleton(spec, make_skeleton(spec))
+        except RoadweaverError as exc:  # a failed map is a result too; the others still count
+            print(f"seams seed {seed}: FAILED: {exc}")
+            out["maps"].append({"seed": seed, "error": str(exc)})
+            continue
         # Sampling windows start every half window: 1 km times the window scale (1.08 at
         # density 30, which the model samples at 35 over stretched windows). Bands of half that
         # put a window border on every second band edge.
