@@ -58,7 +58,7 @@ def fill_to_density(
     while heap and count < target:
         _, _, face = heapq.heappop(heap)
         ends = None
-        makers = [split_chord, partial(straight_chord, roads=index)]
+        makers = [partial(split_chord, roads=index), partial(straight_chord, roads=index)]
         if rng.random() < CONTINUE_SHARE:
             makers.insert(0, continuation_chord)
         for make_chord in makers:
@@ -149,7 +149,8 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / max(float(np.hypot(*v)), 1e-9)
 
 
-def split_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rng, min_edge, min_angle):
+def split_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rng, min_edge, min_angle,
+                *, roads: EdgeIndex | None = None):
     """A local road across ``face``: traced both ways from an interior point along the tensor
     axis that cuts the face's long side, clipped where it first leaves the face. A few start
     points and both axes are tried before the block is given up."""
@@ -163,8 +164,9 @@ def split_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rng, min_
             continue
         wanted = across if attempt < 4 else along
         d0 = choose_axis(field, start, wanted)
-        chord = _joined(face, nodes, [_trace_in_face(face, start, d, field) for d in (d0, -d0)],
-                        min_edge, min_angle)
+        halves = [_trace_in_face(face, start, d, field, roads) for d in (d0, -d0)]
+        met = [line for _, line in filter(None, halves)]
+        chord = _joined(face, nodes, [h and h[0] for h in halves], min_edge, min_angle, met)
         if chord is not None:
             return chord
     return None
@@ -188,10 +190,10 @@ def continuation_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rn
         miss = abs(float(ahead[0] * off[1] - ahead[1] * off[0]))  # centre's distance from the line
         candidates.append((miss, node, xy, ahead))
     for _, node, xy, ahead in sorted(candidates, key=lambda c: c[:2])[:3]:
-        path = _trace_in_face(face, xy + 1.0 * ahead, ahead, field)
-        if path is None:
+        traced = _trace_in_face(face, xy + 1.0 * ahead, ahead, field)
+        if traced is None:
             continue
-        chord = np.vstack([xy, path])
+        chord = np.vstack([xy, traced[0]])
         if _ends_ok(face, nodes, chord, min_edge, min_angle, check_start=False):
             return chord
     return None
@@ -280,12 +282,15 @@ def _axes(face: Polygon):
     return along, across, centre
 
 
-def _trace_in_face(face: Polygon, start, d, field: TensorField):
-    """Follow the field from ``start`` until the path crosses the face boundary.
+def _trace_in_face(face: Polygon, start, d, field: TensorField,
+                   roads: EdgeIndex | None = None):
+    """Follow the field from ``start`` until the path crosses the face boundary, or the first
+    road in ``roads`` (a dead end inside the block, which the face's rings do not include);
+    returns the path and the line it ends on, or None.
 
     The path is traced in growing chunks and intersected with the boundary once per chunk (a
     shapely call per Euler step would dominate the run time)."""
-    boundary = face.exterior
+    rings = [face.exterior, *face.interiors]  # inner rings: blocks hanging inside on bridges
     x, y = float(start[0]), float(start[1])  # plain floats in the step loop: no 2-vectors
     pts = [(x, y)]
     d = np.asarray(d, float)
@@ -296,12 +301,20 @@ def _trace_in_face(face: Polygon, start, d, field: TensorField):
             x, y = x + STEP * float(d[0]), y + STEP * float(d[1])
             pts.append((x, y))
         path = LineString(np.asarray(pts[first:]))  # an array: no per-point conversion
-        hit = path.intersection(boundary)
-        if not hit.is_empty:
+        lines = rings + ([roads.lines[key] for key in roads.near(path, 0.0)] if roads else [])
+        best = None
+        for line in lines:
+            hit = path.intersection(line)
+            if hit.is_empty:
+                continue
             along = min(path.project(g) for g in shapely.get_parts(shapely.points(
                 shapely.get_coordinates(hit))))
-            head = shapely.ops.substring(path, 0, along)
-            return np.vstack([np.asarray(pts[:first]).reshape(-1, 2), np.asarray(head.coords)])
+            if (first > 0 or along > 1e-6) and (best is None or along < best[0]):
+                best = (along, line)
+        if best is not None:
+            head = shapely.ops.substring(path, 0, best[0])
+            return (np.vstack([np.asarray(pts[:first]).reshape(-1, 2), np.asarray(head.coords)]),
+                    best[1])
     return None
 
 
