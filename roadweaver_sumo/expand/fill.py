@@ -74,10 +74,24 @@ def fill_to_density(
         # A chord adds one to the degree of its two end nodes; the other nodes it may create
         # (a shape node, a split point before the chord reaches it) have degree 2: not counted.
         count += sum((G.degree(n) != 2) - (G.degree(n) - 1 != 2) for n in ends)
-        for part in shapely.get_parts(shapely.ops.split(face, _extended(chord, 1.0))):
-            if part.area > 1.0:
-                heapq.heappush(heap, (-part.area, counter, part))
-                counter += 1
+        for part in _split_face(face, chord, index):
+            heapq.heappush(heap, (-part.area, counter, part))
+            counter += 1
+
+
+def _split_face(face: Polygon, chord: np.ndarray, index: EdgeIndex) -> list[Polygon]:
+    """The blocks ``face`` becomes with ``chord`` added. A chord across the face splits it in
+    two; one that ends on a dead-end road inside the face (which its rings leave out) closes
+    a block only together with that road, so such faces are re-polygonised from their rings,
+    the chord and the roads inside them."""
+    parts = [p for p in shapely.get_parts(shapely.ops.split(face, _extended(chord, 1.0)))
+             if p.area > 1.0]
+    if len(parts) > 1 or not index.near(face, 0.0):
+        return parts
+    inside = [index.lines[key] for key in index.near(face, 0.0)]
+    noded = shapely.union_all([face.exterior, *face.interiors, *inside])  # T's become nodes
+    found = shapely.get_parts(shapely.polygonize(shapely.get_parts(noded)))
+    return [p for p in found if p.area > 1.0 and face.contains(p.representative_point())]
 
 
 class _NodePoints:
