@@ -32,7 +32,7 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     roads.append((skeleton.frame, "collector"))
     G = build_planar_graph(roads, spec.width, spec.height)
     stub = 0.5 * block_size(spec.density)
-    clean(G, MIN_EDGE, MIN_ANGLE, stub=MIN_EDGE, margin=BORDER_MARGIN)
+    clean(G, MIN_EDGE, MIN_ANGLE, stub=MIN_EDGE, margin=BORDER_MARGIN, keep_largest=False)
     links = reconnect_dangles(
         G, skeleton.cost_map(), skeleton.res, radius=2 * stub, margin=BORDER_MARGIN
     )

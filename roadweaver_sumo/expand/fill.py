@@ -58,7 +58,8 @@ def fill_to_density(
     while heap and count < target:
         _, _, face = heapq.heappop(heap)
         ends = None
-        makers = [partial(split_chord, roads=index), partial(straight_chord, roads=index)]
+        makers = [partial(split_chord, roads=index), partial(straight_chord, roads=index),
+                  partial(scattered_chord, roads=index)]
         if rng.random() < CONTINUE_SHARE:
             makers.insert(0, continuation_chord)
         for make_chord in makers:
@@ -178,6 +179,27 @@ def split_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rng, min_
             continue
         wanted = across if attempt < 4 else along
         d0 = choose_axis(field, start, wanted)
+        halves = [_trace_in_face(face, start, d, field, roads) for d in (d0, -d0)]
+        met = [line for _, line in filter(None, halves)]
+        chord = _joined(face, nodes, [h and h[0] for h in halves], min_edge, min_angle, met)
+        if chord is not None:
+            return chord
+    return None
+
+
+def scattered_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rng, min_edge,
+                    min_angle, *, roads: EdgeIndex | None = None, tries: int = 16):
+    """:func:`split_chord` from random points inside ``face``: the last resort for a large
+    concave block whose centre lies outside it or whose middle chords all end too close to a
+    junction (a block wrapped around dead-end trees of the skeleton). Traced across the
+    field first, then along it."""
+    x0, y0, x1, y1 = face.bounds
+    for attempt in range(tries):
+        start = np.array([rng.uniform(x0, x1), rng.uniform(y0, y1)])
+        if not face.contains(Point(start)):
+            continue
+        d0 = choose_axis(field, start, np.array([1.0, 0.0]) if attempt % 2 else
+                         np.array([0.0, 1.0]))
         halves = [_trace_in_face(face, start, d, field, roads) for d in (d0, -d0)]
         met = [line for _, line in filter(None, halves)]
         chord = _joined(face, nodes, [h and h[0] for h in halves], min_edge, min_angle, met)

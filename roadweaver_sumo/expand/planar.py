@@ -349,8 +349,10 @@ def _maybe_sharp(edges: list, G: nx.Graph, max_turn_deg: float) -> np.ndarray:
             + np.bincount(step_owner[1:][sharp], minlength=n)) > 0
 
 
-def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: float) -> None:
-    """The whole clean-up, repeated until nothing changes."""
+def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: float,
+          keep_largest: bool = True) -> None:
+    """The whole clean-up, repeated until nothing changes. ``keep_largest=False`` keeps every
+    component: the clean-up before A* reconnection, which may join them (paper §III-C)."""
     bearings: dict = {}
     for _ in range(10):
         before = (G.number_of_nodes(), G.number_of_edges())
@@ -359,7 +361,8 @@ def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: f
         while remove_sharp_angles(G, min_angle, bearings):
             pass
         prune_stubs(G, stub, margin)
-        keep_largest_component(G)
+        if keep_largest:
+            keep_largest_component(G)
         dissolve_degree_two(G, min_angle, bearings)
         if (G.number_of_nodes(), G.number_of_edges()) == before:
             break
