@@ -13,7 +13,7 @@ from ..spec import STAGE_FILL, STAGE_GROWTH, ScenarioSpec
 from .fill import fill_to_density, prune_to_density
 from .growth import grow_collectors, skeleton_tensor_field
 from .planar import build_planar_graph, clean
-from .reconnect import reconnect_dangles
+from .reconnect import link_components, reconnect_dangles
 
 MIN_EDGE = 12.0  # metres: shorter roads are merged into a junction
 MIN_ANGLE = 30.0  # degrees between roads at a junction
@@ -24,7 +24,8 @@ DENSITY_LIMIT = 0.10  # beyond this the request counts as impossible (issue 2: w
 
 
 def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
-    """Growth -> A* reconnection -> largest component -> fill/prune to the target density."""
+    """Growth -> A* reconnection (dead ends, then whole components) -> the ring's component ->
+    fill/prune to the target density."""
     field = skeleton_tensor_field(skeleton)
     collectors = grow_collectors(spec, skeleton, field, spec.rng(STAGE_GROWTH))
     roads = list(zip(skeleton.polylines, skeleton.road_classes()))
@@ -36,6 +37,9 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     links = reconnect_dangles(
         G, skeleton.cost_map(), skeleton.res, radius=2 * stub, margin=BORDER_MARGIN
     )
+    if links:
+        G = _renode(G, [(c, "collector") for c in links])
+    links = link_components(G, skeleton.cost_map(), skeleton.res, radius=4 * stub)
     if links:
         G = _renode(G, [(c, "collector") for c in links])
     clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN)

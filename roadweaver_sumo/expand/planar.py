@@ -276,12 +276,22 @@ def prune_stubs(G: nx.Graph, max_length: float, margin: float) -> None:
 
 
 def keep_largest_component(G: nx.Graph) -> None:
-    """The largest-connected-component filter."""
-    if G.number_of_nodes() == 0:
-        return
-    comps = sorted(nx.connected_components(G), key=lambda c: (len(c), -min(c)), reverse=True)
-    for comp in comps[1:]:
+    """The component filter: keep the component holding the perimeter ring road, else the
+    largest. Every block the density fill splits closes against the ring; once fragments of a
+    learned skeleton are reconnected, a cluster of them can outnumber the ring's component in
+    nodes, and keeping it left a 2 km map with 0.15 km² of blocks."""
+    for comp in components_main_first(G)[1:]:
         G.remove_nodes_from(comp)
+
+
+def components_main_first(G: nx.Graph) -> list[set]:
+    """Connected components, the one holding the most of the perimeter ring first, then by
+    size (ties: lowest node id)."""
+    comps = list(nx.connected_components(G))
+    if len(comps) <= 1:
+        return comps
+    ring = {n for u, v in G.edges if on_perimeter(G, u, v) for n in (u, v)}
+    return sorted(comps, key=lambda c: (len(c & ring), len(c), -min(c)), reverse=True)
 
 
 def turn_angles(coords: np.ndarray) -> np.ndarray:

@@ -15,6 +15,7 @@ from shapely.ops import nearest_points
 from skimage.graph import MCP_Geometric
 
 from ..raster import rasterise_polylines
+from .planar import components_main_first
 
 
 def dangling_ends(G: nx.Graph, margin: float) -> list[int]:
@@ -53,6 +54,36 @@ def reconnect_dangles(
     return links
 
 
+def link_components(G: nx.Graph, cost: np.ndarray, res: float, radius: float) -> list[np.ndarray]:
+    """Polylines linking each component that is not the main one (the perimeter ring's) to
+    it: an A* path from the component's junction nearest to a main road, within ``radius``.
+    A component with no dead end (a loop, a cluster whose ends all found each other) gets no
+    link from :func:`reconnect_dangles` and would otherwise be dropped whole."""
+    comps = components_main_first(G)
+    if len(comps) <= 1:
+        return []
+    main_edges = sorted(G.subgraph(comps[0]).edges)
+    lines = [shapely.LineString(G.edges[e]["coords"]) for e in main_edges]
+    tree = shapely.STRtree(lines)
+    targets = rasterise_polylines([G.edges[e]["coords"] for e in main_edges], cost.shape, res)
+    links = []
+    for comp in comps[1:]:
+        nodes = sorted(comp)
+        xy = np.array([G.nodes[n]["xy"] for n in nodes], float)
+        _, gap = tree.query_nearest(shapely.points(xy), return_distance=True, all_matches=False)
+        k = int(np.argmin(gap))
+        if gap[k] > radius:
+            continue
+        path = _cheapest_link(xy[k], cost, targets, res, radius)
+        if path is None and gap[k] < 2 * res:  # within a cell or two: a straight link
+            path = np.array([xy[k], xy[k]])
+        if path is not None:
+            path = _snap_end(path, lines, tree, set())
+        if path is not None and np.hypot(*(path[-1] - path[0])) > 1.0:
+            links.append(path)
+    return links
+
+
 def _cheapest_link(p, cost, targets, res, radius):
     ny, nx_ = cost.shape
     r = int(radius / res)
@@ -71,6 +102,8 @@ def _cheapest_link(p, cost, targets, res, radius):
         return None
     end = np.unravel_index(int(np.argmin(reached)), reached.shape)
     cells = np.array(mcp.traceback(end))
+    if len(cells) < 2:
+        return None  # the start cell is a target: no path to trace
     xy = (cells[:, ::-1] + [j0, i0] + 0.5) * res
     xy[0] = p
     line = shapely.LineString(xy).simplify(res * 0.75)
