@@ -280,3 +280,93 @@ def test_junctions_closer_than_the_junction_gap_become_one():
     kept = "a" if G.has_node("a") else "b"
     assert G.degree(kept) == 5
     assert G.has_edge("c", "stub")  # a 15 m dead end is not a gap between junctions
+
+
+def test_a_skeleton_fragment_near_the_network_is_reconnected_not_dropped():
+    """Paper order: dangling ends are reconnected by A* first, and only then is the largest
+    component kept. A learned skeleton decodes into many pieces; filtering first dropped about
+    two thirds of a mixed or organic skeleton's length before A* ever saw it."""
+    import shapely
+
+    from roadweaver_sumo.skeleton.model import Skeleton, perimeter, road_field_from_polylines
+    from roadweaver_sumo.tensor_field import from_angles
+
+    size, res = 1500.0, 10.0
+    main = np.array([[15.0, 750.0], [1485.0, 750.0]])
+    fragment = np.array([[300.0, 850.0], [300.0, 1100.0], [550.0, 1100.0]])  # 100 m off
+    gap = np.array([[300.0, 750.0], [300.0, 850.0]])
+    shape = (int(size / res), int(size / res))
+    skeleton = Skeleton(
+        polylines=[main, fragment], frame=perimeter(size, size),
+        basis=from_angles(np.zeros(shape), np.ones(shape), res),
+        road_prob=road_field_from_polylines([main, fragment, gap], shape, res, 20.0), res=res)
+    spec = ScenarioSpec(density=10, vehicles=10, width=size, height=size, seed=0,
+                        skeleton="procedural")
+    G = expand_skeleton(spec, skeleton)
+    roads = shapely.MultiLineString([G.edges[e]["coords"] for e in G.edges])
+    kept = shapely.LineString(fragment).intersection(roads.buffer(5.0)).length
+    assert kept > 0.9 * shapely.LineString(fragment).length
+
+
+def test_scattered_chord_splits_a_block_whose_centre_lies_outside_it():
+    """A U-shaped block (its centroid is in the notch, outside the block): the middle chords
+    have no start point; the last-resort chord starts from random interior points and crosses
+    one arm of the U from edge to edge."""
+    from shapely.geometry import Point, Polygon
+
+    from roadweaver_sumo.expand.edge_index import EdgeIndex
+    from roadweaver_sumo.expand.fill import _NodePoints, faces, scattered_chord
+    from roadweaver_sumo.tensor_field import from_angles
+
+    ring = np.array([[0, 0], [900, 0], [900, 900], [600, 900], [600, 300], [300, 300],
+                     [300, 900], [0, 900], [0, 0]], float)
+    G = build_planar_graph([(ring, "collector")], 900, 900)
+    (block,) = faces(G)
+    assert not block.contains(block.centroid)
+    field = from_angles(np.zeros((9, 9)), np.ones((9, 9)), 100.0)  # east-west
+    chord = scattered_chord(block, _NodePoints(G), field, np.random.default_rng(1), MIN_EDGE,
+                            MIN_ANGLE, roads=EdgeIndex(G))
+    assert chord is not None
+    assert Polygon(ring).buffer(1e-6).contains(LineString(chord))
+    assert all(block.exterior.distance(Point(p)) < 1e-6 for p in (chord[0], chord[-1]))
+
+
+def test_a_loop_fragment_without_dead_ends_is_linked_too():
+    """A skeleton piece whose ends all found each other (here a closed loop) has no dead end
+    for A* to start from; it gets a link from its junction nearest to the network."""
+    import shapely
+
+    from roadweaver_sumo.skeleton.model import Skeleton, perimeter, road_field_from_polylines
+    from roadweaver_sumo.tensor_field import from_angles
+
+    size, res = 1500.0, 10.0
+    main = np.array([[15.0, 750.0], [1485.0, 750.0]])
+    loop = np.array([[300.0, 850.0], [450.0, 850.0], [450.0, 1000.0], [300.0, 1000.0],
+                     [300.0, 850.0]])  # 100 m off the main road
+    shape = (int(size / res), int(size / res))
+    skeleton = Skeleton(
+        polylines=[main, loop], frame=perimeter(size, size),
+        basis=from_angles(np.zeros(shape), np.ones(shape), res),
+        road_prob=road_field_from_polylines([main, loop], shape, res, 20.0), res=res)
+    spec = ScenarioSpec(density=10, vehicles=10, width=size, height=size, seed=0,
+                        skeleton="procedural")
+    G = expand_skeleton(spec, skeleton)
+    roads = shapely.MultiLineString([G.edges[e]["coords"] for e in G.edges])
+    kept = shapely.LineString(loop).intersection(roads.buffer(5.0)).length
+    assert kept > 0.9 * shapely.LineString(loop).length
+
+
+def test_component_filter_keeps_the_ring_over_a_bigger_cluster():
+    """Blocks close against the perimeter ring: the filter keeps the ring's component even
+    when a cluster of reconnected fragments has more junctions."""
+    from roadweaver_sumo.expand.planar import keep_largest_component, on_perimeter
+    from roadweaver_sumo.skeleton.model import perimeter
+
+    cluster = [np.array([[400.0 + 50 * k, 300.0], [400.0 + 50 * k, 600.0]]) for k in range(4)]
+    cluster += [np.array([[380.0, 350.0 + 60 * k], [570.0, 350.0 + 60 * k]]) for k in range(4)]
+    roads = [(perimeter(1000, 1000), "collector")] + [(c, "arterial") for c in cluster]
+    G = build_planar_graph(roads, 1000, 1000)
+    ring_nodes = {n for u, v in G.edges if on_perimeter(G, u, v) for n in (u, v)}
+    assert len(ring_nodes) < G.number_of_nodes() - len(ring_nodes)  # the cluster is bigger
+    keep_largest_component(G)
+    assert set(G.nodes) == ring_nodes
