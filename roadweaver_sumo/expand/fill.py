@@ -87,9 +87,11 @@ def _split_face(face: Polygon, chord: np.ndarray, index: EdgeIndex) -> list[Poly
     the chord and the roads inside them."""
     parts = [p for p in shapely.get_parts(shapely.ops.split(face, _extended(chord, 1.0)))
              if p.area > 1.0]
-    if len(parts) > 1 or not index.near(face, 0.0):
+    if len(parts) > 1:
         return parts
     inside = [index.lines[key] for key in index.near(face, 0.0)]
+    if not inside:
+        return parts
     noded = shapely.union_all([face.exterior, *face.interiors, *inside])  # T's become nodes
     found = shapely.get_parts(shapely.polygonize(shapely.get_parts(noded)))
     return [p for p in found if p.area > 1.0 and face.contains(p.representative_point())]

@@ -140,17 +140,20 @@ def contract_short_edges(G: nx.Graph, min_length: float,
 
 
 def merge_close_nodes(G: nx.Graph, radius: float) -> None:
-    """Merge junctions closer than ``radius`` even when no road joins them directly."""
-    while True:
-        nodes = sorted(G.nodes)
-        if len(nodes) < 2:
-            return
-        pts = np.array([G.nodes[n]["xy"] for n in nodes])
-        pairs = sorted(cKDTree(pts).query_pairs(radius))
-        if not pairs:
-            return
-        i, j = pairs[0]
-        merge_nodes(G, *_keep_and_drop(G, nodes[i], nodes[j]))
+    """Merge junctions closer than ``radius`` even when no road joins them directly, pair by
+    pair in node order. A merge keeps the kept node where it is and makes no node, so the
+    close pairs are found once; a pair whose node has gone is skipped."""
+    nodes = sorted(G.nodes)
+    if len(nodes) < 2:
+        return
+    pts = np.array([G.nodes[n]["xy"] for n in nodes])
+    dropped: set = set()
+    for i, j in sorted(cKDTree(pts).query_pairs(radius)):
+        if nodes[i] in dropped or nodes[j] in dropped:
+            continue
+        keep, drop = _keep_and_drop(G, nodes[i], nodes[j])
+        merge_nodes(G, keep, drop)
+        dropped.add(drop)
 
 
 def _keep_and_drop(G: nx.Graph, u: int, v: int) -> tuple[int, int]:

@@ -45,7 +45,8 @@ def reconnect_dangles(
         # make a loop back to where the road started, not a new connection.
         base = [(w, x) for x in G.neighbors(w)]
         own = rasterise_polylines([G.edges[e]["coords"] for e in base], cost.shape, res)
-        path = _cheapest_link(np.asarray(G.nodes[n]["xy"]), cost, road_mask & ~own, res, radius)
+        path = _cheapest_link(np.asarray(G.nodes[n]["xy"]), cost, road_mask, res, radius,
+                              exclude=own)
         if path is not None:
             skip = {position.get(e, position.get(e[::-1])) for e in base}
             path = _snap_end(path, lines, tree, skip)
@@ -84,13 +85,17 @@ def link_components(G: nx.Graph, cost: np.ndarray, res: float, radius: float) ->
     return links
 
 
-def _cheapest_link(p, cost, targets, res, radius):
+def _cheapest_link(p, cost, targets, res, radius, exclude=None):
+    """The cheapest path from ``p`` to a ``targets`` cell (not an ``exclude`` cell) within
+    ``radius``; the masks are only read inside that window (one search per dead end)."""
     ny, nx_ = cost.shape
     r = int(radius / res)
     ci, cj = int(p[1] / res), int(p[0] / res)
     i0, i1 = max(ci - r, 0), min(ci + r + 1, ny)
     j0, j1 = max(cj - r, 0), min(cj + r + 1, nx_)
     window_targets = targets[i0:i1, j0:j1]
+    if exclude is not None:
+        window_targets = window_targets & ~exclude[i0:i1, j0:j1]
     if not window_targets.any():
         return None
     mcp = MCP_Geometric(cost[i0:i1, j0:j1])
