@@ -55,6 +55,12 @@ class EdgeIndex:
         keys = sorted(found)
         if not keys:
             return []
-        dist = shapely.distance(np.array([self.lines[k] for k in keys]), geom)
+        lines = np.array([self.lines[k] for k in keys])
+        if distance == 0.0:
+            # "touches or crosses": a prepared intersects test is exact and, against a big
+            # block polygon, many times cheaper than measuring each distance (which is 0 here)
+            shapely.prepare(geom)
+            return [k for k, hit in zip(keys, shapely.intersects(geom, lines), strict=True) if hit]
+        dist = shapely.distance(lines, geom)
         order = np.argsort(dist, kind="stable")
         return [keys[k] for k in order if dist[k] <= distance]

@@ -290,7 +290,7 @@ def _straight_in_face(face: Polygon, start, d, roads: EdgeIndex | None):
     if roads is not None:
         lines += [roads.lines[key] for key in roads.near(path, 0.0)]
     best = None
-    for line in lines:
+    for line in _crossed(path, lines):
         hit = path.intersection(line)
         if hit.is_empty:
             continue
@@ -303,6 +303,13 @@ def _straight_in_face(face: Polygon, start, d, roads: EdgeIndex | None):
     along, line = best
     steps = max(1, math.ceil(along / STEP))
     return np.asarray(start, float) + np.linspace(0.0, along, steps + 1)[:, None] * d, line
+
+
+def _crossed(path: LineString, lines: list) -> list:
+    """The lines ``path`` touches or crosses, in their order: one prepared predicate call
+    instead of an overlay (``intersection``) with each block ring, most of which it misses."""
+    shapely.prepare(path)
+    return [line for line, hit in zip(lines, shapely.intersects(path, lines), strict=True) if hit]
 
 
 def _axes(face: Polygon):
@@ -341,7 +348,7 @@ def _trace_in_face(face: Polygon, start, d, field: TensorField,
         path = LineString(np.asarray(pts[first:]))  # an array: no per-point conversion
         lines = rings + ([roads.lines[key] for key in roads.near(path, 0.0)] if roads else [])
         best = None
-        for line in lines:
+        for line in _crossed(path, lines):
             hit = path.intersection(line)
             if hit.is_empty:
                 continue
