@@ -293,3 +293,39 @@ def test_inner_boundary_of_a_tight_turn_runs_forwards():
     assert (np.einsum("ij,ij->i", steps, along) > 0).all()  # forwards along the lane
     assert (np.einsum("ij,ij->i", steps[:-1], steps[1:]) > 0).all()  # no turn of 90 degrees
     assert LineString(right).is_simple
+
+
+def test_connectors_get_as_many_samples_as_their_curve_needs():
+    """A straight connector is two points, a tight turn keeps every sample, and any connector
+    sampled more coarsely stays within the tolerance of its Bezier curve."""
+    from roadweaver_sumo.hdmap.geometry import (
+        BEZIER_SAMPLES,
+        BEZIER_TOLERANCE,
+        bezier_controls,
+        bezier_sample,
+        bezier_sample_counts,
+    )
+
+    rng = np.random.default_rng(3)
+    m = 400
+    p0 = rng.uniform(-5, 5, (m, 2))
+    angle0 = rng.uniform(-np.pi, np.pi, m)
+    angle3 = angle0 + rng.uniform(-1.2, 1.2, m)  # through movements and bends
+    t0 = np.column_stack([np.cos(angle0), np.sin(angle0)])
+    t3 = np.column_stack([np.cos(angle3), np.sin(angle3)])
+    across = np.column_stack([-t0[:, 1], t0[:, 0]])
+    p3 = p0 + rng.uniform(8, 30, (m, 1)) * t0 + rng.uniform(-4, 4, (m, 1)) * across
+    straight = bezier_controls(np.zeros((1, 2)), np.array([[1.0, 0.0]]),
+                               np.array([[20.0, 0.0]]), np.array([[1.0, 0.0]]))
+    turn = bezier_controls(np.zeros((1, 2)), np.array([[1.0, 0.0]]),
+                           np.array([[8.0, 8.0]]), np.array([[0.0, 1.0]]))
+    ctrl = np.concatenate([straight, turn, bezier_controls(p0, t0, p3, t3)])
+    counts = bezier_sample_counts(ctrl)
+    assert counts[0] == 2 and counts[1] == BEZIER_SAMPLES
+    assert (counts < BEZIER_SAMPLES).sum() > 20  # the loop below checks something
+    dense, _, _ = bezier_sample(ctrl, 200)
+    for k in np.flatnonzero(counts < BEZIER_SAMPLES):
+        coarse, _, _ = bezier_sample(ctrl[k : k + 1], int(counts[k]))
+        polyline = LineString(coarse[0])
+        gap = max(polyline.distance(Point(p)) for p in dense[k])
+        assert gap <= BEZIER_TOLERANCE + 1e-9, (k, counts[k], gap)

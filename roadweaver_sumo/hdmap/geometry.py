@@ -9,6 +9,7 @@ import numpy as np
 
 MAX_MITER = 4.0  # cap on the miter stretch at sharp vertices, so offsets never spike
 BEZIER_SAMPLES = 12  # a 90° turn of 8 m radius: 2 cm from the true curve
+BEZIER_TOLERANCE = 0.02  # m: gentler connectors get fewer samples, as close to their curve
 INNER_REACH = 0.8  # an inner boundary stays within this share of the curvature radius
 INNER_RAMP = 3  # samples over which a narrowed inner boundary returns to the lane ends
 
@@ -146,6 +147,20 @@ def bezier_sample(ctrl: np.ndarray, n: int = BEZIER_SAMPLES):
     curvature = _cross(vel, acc) / speed**3
     pts[:, 0], pts[:, -1] = ctrl[:, 0], ctrl[:, 3]
     return pts, vel / speed[..., None], curvature
+
+
+def bezier_sample_counts(ctrl: np.ndarray, tol: float = BEZIER_TOLERANCE,
+                         most: int = BEZIER_SAMPLES) -> np.ndarray:
+    """Samples per cubic Bezier (m, 4, 2) so that the polyline through them stays within
+    ``tol`` of the curve: 2 for a straight connector, ``most`` for a tight turn.
+
+    A chord over a parameter step h deviates at most h² max|B''| / 8 from the curve, and |B''|
+    peaks at an end: 6 |P0 - 2 P1 + P2| or 6 |P1 - 2 P2 + P3|. Most connectors in a map are
+    through movements and gentle bends; every sample is a node in the lanelet2 file."""
+    second = np.maximum(np.linalg.norm(ctrl[:, 0] - 2 * ctrl[:, 1] + ctrl[:, 2], axis=1),
+                        np.linalg.norm(ctrl[:, 1] - 2 * ctrl[:, 2] + ctrl[:, 3], axis=1))
+    steps = np.ceil(np.sqrt(0.75 * second / tol))
+    return np.clip(steps, 1, most - 1).astype(int) + 1
 
 
 def offset_along(pts: np.ndarray, tangents: np.ndarray, distances: np.ndarray) -> np.ndarray:

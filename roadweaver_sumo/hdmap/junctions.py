@@ -15,6 +15,7 @@ from .geometry import (
     arc_lengths,
     bezier_controls,
     bezier_sample,
+    bezier_sample_counts,
     boundary_offsets,
     end_tangent_rows,
     offset_along,
@@ -126,13 +127,9 @@ def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]]) -> list[Lan
         np.array([b.centre[0] for b in outs]),
         start_tangent_rows([b.centre for b in outs]),
     )
-    pts, tangents, curvature = bezier_sample(ctrl)
     w0 = np.array([a.end_width for a in ins])
     w1 = np.array([b.width for b in outs])
-    half = (w0[:, None] + (w1 - w0)[:, None] * np.linspace(0.0, 1.0, pts.shape[1])) / 2.0
-    left_d, right_d = boundary_offsets(curvature, half)
-    left, right = offset_along(pts, tangents, left_d), offset_along(pts, tangents, right_d)
-    turn_speed = np.sqrt(LATERAL_ACCEL / np.maximum(np.abs(curvature).max(axis=1), 1e-9))
+    curves, turn_speed = _connector_curves(ctrl, w0, w1)
     lanes = []
     for i, ((node, in_id, out_id, movement), a, b) in enumerate(zip(plan, ins, outs, strict=True)):
         junction = hd.junctions[node]
@@ -143,9 +140,9 @@ def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]]) -> list[Lan
             width=a.end_width,
             end_width=b.width,
             speed=round(min(a.speed, b.speed, float(turn_speed[i])), 2),
-            centre=pts[i],
-            left=left[i],
-            right=right[i],
+            centre=curves[i][0],
+            left=curves[i][1],
+            right=curves[i][2],
             junction=node,
             movement=movement,
             bezier=ctrl[i],
@@ -156,3 +153,30 @@ def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]]) -> list[Lan
         junction.connectors.append(lane.id)
         lanes.append(lane)
     return lanes
+
+
+def _connector_curves(ctrl: np.ndarray, w0: np.ndarray, w1: np.ndarray):
+    """Per connector (centre, left, right) polylines, and its speed limit from its tightest
+    curvature; widths blend linearly from ``w0`` to ``w1``.
+
+    Every connector is first sampled densely (``BEZIER_SAMPLES``): that fixes its speed and
+    whether a tight bend pulls its inner boundary in. Connectors whose boundaries are plain
+    offsets are then resampled with just enough points for their curve
+    (``bezier_sample_counts``): a straight one needs two."""
+    pts, tangents, curvature = bezier_sample(ctrl)
+    half = (w0[:, None] + (w1 - w0)[:, None] * np.linspace(0.0, 1.0, pts.shape[1])) / 2.0
+    left_d, right_d = boundary_offsets(curvature, half)
+    left, right = offset_along(pts, tangents, left_d), offset_along(pts, tangents, right_d)
+    turn_speed = np.sqrt(LATERAL_ACCEL / np.maximum(np.abs(curvature).max(axis=1), 1e-9))
+    counts = bezier_sample_counts(ctrl)
+    pulled = ~((left_d == half).all(axis=1) & (right_d == -half).all(axis=1))
+    counts[pulled] = pts.shape[1]
+    curves = list(zip(pts, left, right, strict=True))
+    for n in np.unique(counts[counts < pts.shape[1]]).tolist():
+        rows = np.flatnonzero(counts == n)
+        p, t, _ = bezier_sample(ctrl[rows], n)
+        h = (w0[rows, None] + (w1 - w0)[rows, None] * np.linspace(0.0, 1.0, n)) / 2.0
+        group = zip(p, offset_along(p, t, h), offset_along(p, t, -h), strict=True)
+        for row, curve in zip(rows.tolist(), group, strict=True):
+            curves[row] = curve
+    return curves, turn_speed
