@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections import Counter
+
 import networkx as nx
 import numpy as np
 import pytest
@@ -329,3 +331,26 @@ def test_connectors_get_as_many_samples_as_their_curve_needs():
         polyline = LineString(coarse[0])
         gap = max(polyline.distance(Point(p)) for p in dense[k])
         assert gap <= BEZIER_TOLERANCE + 1e-9, (k, counts[k], gap)
+
+
+def test_no_two_lanes_merge_inside_a_junction_where_a_road_turns_off():
+    """A two-lane arterial that bends away to the right (a right turn) while a one-lane local
+    road carries on straight: the local road is entered from the left lane only, the right
+    turn from the right lane only. Both lanes into the one lane would run on converging
+    internal lanes, where cars side by side touch (junction collisions in SUMO)."""
+    nodes = {0: (200, 200), 1: (50, 200), 2: (350, 200), 3: (300, 60)}
+    hd = build_hdmap(_graph(nodes, [(1, 0, "arterial"), (0, 3, "arterial"), (0, 2, "local")]))
+    roads = {(r.from_node, r.to_node): r.id for r in hd.roads.values()}
+    west, ahead, right = roads[(1, 0)], roads[(0, 2)], roads[(0, 3)]
+    pairs = {(hd.lanes[c].predecessors[0], hd.lanes[c].successors[0], hd.lanes[c].movement)
+             for c in hd.junctions[0].connectors if hd.lanes[c].predecessors[0].startswith(f"r{west}_f")}
+    assert pairs == {(f"r{west}_f_1", f"r{ahead}_f_0", "straight"),
+                     (f"r{west}_f_0", f"r{right}_f_0", "right")}
+    for name, graph in (("T", t_junction()), ("grid", grid_with_arterial_cross())):
+        built = build_hdmap(graph)
+        for junction in built.junctions.values():
+            if len(junction.roads) < 3:
+                continue
+            entered = Counter((built.lanes[built.lanes[c].predecessors[0]].edge,
+                               built.lanes[c].successors[0]) for c in junction.connectors)
+            assert max(entered.values()) == 1, (name, junction.id, entered.most_common(1))

@@ -7,9 +7,11 @@ Rules, right-hand traffic, lane index 0 = rightmost:
   only at dead ends, where the road's own reverse is the only way on;
 * the movement closest to straight ahead is *straight* if it turns less than 50 degrees, or if
   every movement turns the same way (the road bends); the others are left or right turns;
-* straight spreads all incoming lanes over all outgoing lanes; right turns leave from the
+* straight spreads the incoming lanes over all outgoing lanes; right turns leave from the
   rightmost lane into the rightmost lane, left turns from the leftmost into the leftmost (with
   no straight movement, the incoming lanes are split between the right and the left turns);
+  where the road ahead has fewer lanes, only as many go straight on, beside the turn lane,
+  so that no two lanes merge inside the junction;
 * gaps are closed: an incoming lane without a movement or an outgoing lane nobody enters
   copies the movement of its nearest served neighbour lane.
 """
@@ -85,8 +87,11 @@ def lane_plan(arrival: Approach, moves: list[tuple[Approach, str]]) -> Plan:
     n_right = 1 if one_turn_lane else n // 2
     n_left = 1 if one_turn_lane else n - n // 2
     plan: Plan = []
+    turns = {m for _, m in moves}
     for dep, movement in moves:
-        if movement in ("straight", "uturn"):
+        if movement == "straight":
+            pairs = _spread(_straight_lanes(arrival.lanes, len(dep.lanes), turns), dep.lanes)
+        elif movement == "uturn":
             pairs = _spread(arrival.lanes, dep.lanes)
         elif movement == "right":
             pairs = _spread(arrival.lanes[:n_right], dep.lanes[:1])
@@ -94,6 +99,18 @@ def lane_plan(arrival: Approach, moves: list[tuple[Approach, str]]) -> Plan:
             pairs = _spread(arrival.lanes[n - n_left :], dep.lanes[-1:])
         plan.extend((a, b, movement) for a, b in pairs)
     return plan
+
+
+def _straight_lanes(lanes: list[str], ahead: int, movements: set[str]) -> list[str]:
+    """The incoming lanes that go straight on. Where the road ahead has fewer lanes, only as
+    many as it has, beside the turn lane: lanes that merge inside a junction run on
+    converging internal lanes, and two cars side by side on them touch before the merge
+    point (SUMO counts a junction collision; 5 at priority T's of a 10 km map)."""
+    if ahead >= len(lanes):
+        return lanes
+    if "right" in movements and "left" not in movements:
+        return lanes[len(lanes) - ahead:]  # the rightmost lane is the right-turn lane
+    return lanes[:ahead]  # the leftmost lane turns left (or, with no turn, lanes must merge)
 
 
 def _close_gaps(plan: Plan, groups: list[list[str]], side: int) -> Plan:
