@@ -197,7 +197,10 @@ def test_short_road_keeps_a_lane_section():
 def test_junction_types():
     assert junction_type(["local"]) == "dead_end"
     assert junction_type(["arterial", "arterial"]) == "priority"
-    assert junction_type(["arterial", "arterial", "local"]) == "traffic_light"
+    assert junction_type(["arterial", "arterial", "local"]) == "priority"  # side street
+    assert junction_type(["arterial", "arterial", "collector"]) == "priority"
+    assert junction_type(["arterial", "arterial", "arterial"]) == "traffic_light"
+    assert junction_type(["arterial", "arterial", "local", "local"]) == "traffic_light"
     assert junction_type(["arterial", "collector", "local"]) == "priority"
     assert junction_type(["arterial", "collector", "local", "local"]) == "traffic_light"
     assert junction_type(["arterial"] * 4, traffic_lights=False) == "priority"

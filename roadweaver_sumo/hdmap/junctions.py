@@ -36,9 +36,12 @@ LATERAL_ACCEL = 3.0  # m/s^2: connector speed limit sqrt(a * r_min) on tight tur
 def junction_type(classes: list[str], traffic_lights: bool = True) -> str:
     """Control type from the classes of the roads meeting at a node.
 
-    Traffic lights where two arterials meet (degree >= 3) or an arterial meets a collector at a
-    four-way (or larger) junction, unless ``traffic_lights`` is off (suburban maps); dead ends
-    get their own type; all else is priority.
+    Traffic lights where two arterials cross or meet (three arterial arms, or two in a four-way
+    or larger junction) or an arterial meets a collector at a four-way (or larger) junction,
+    unless ``traffic_lights`` is off (suburban maps); dead ends get their own type; all else is
+    priority. A side street ending on an arterial (a T with two arterial arms) is a priority
+    junction, as in real towns: signalling every such T put 14 lights along one arterial of
+    the 2 km main-command map, with 25.9 s of mean waiting (11.5 s without them).
     """
     degree = len(classes)
     arterials, collectors = classes.count("arterial"), classes.count("collector")
@@ -46,7 +49,8 @@ def junction_type(classes: list[str], traffic_lights: bool = True) -> str:
         return "dead_end"
     if not traffic_lights:
         return "priority"
-    if (arterials >= 2 and degree >= 3) or (arterials >= 1 and collectors >= 1 and degree >= 4):
+    if (arterials >= 3 or (arterials >= 2 and degree >= 4)
+            or (arterials >= 1 and collectors >= 1 and degree >= 4)):
         return "traffic_light"
     return "priority"
 
