@@ -22,6 +22,7 @@ class TensorField:
     s2: np.ndarray  # a sin 2θ
     res: float
     _unit: tuple | None = field(default=None, repr=False, compare=False)
+    _unit_arrays: tuple | None = field(default=None, repr=False, compare=False)
 
     def _cell(self, x, y):
         ny, nx = self.c2.shape
@@ -35,12 +36,20 @@ class TensorField:
         theta = 0.5 * np.arctan2(self.s2[i, j], self.c2[i, j])
         return np.stack([np.cos(theta), np.sin(theta)], axis=-1)
 
+    def unit_vectors(self) -> tuple[np.ndarray, np.ndarray]:
+        """cos θ and sin θ of the major direction of every cell, flattened row by row; kept,
+        since every traced road reads them."""
+        if self._unit_arrays is None:
+            theta = 0.5 * np.arctan2(self.s2, self.c2).ravel()
+            self._unit_arrays = tuple(np.ascontiguousarray(axis, dtype=np.float64)
+                                      for axis in (np.cos(theta), np.sin(theta)))
+        return self._unit_arrays
+
     def major_at(self, x: float, y: float) -> tuple[float, float]:
-        """Fast scalar version of :meth:`major` for the tracer's inner loop (plain floats: numpy
+        """Fast scalar version of :meth:`major` for a Python loop (plain floats: numpy
         call overhead would dominate a single lookup)."""
         if self._unit is None:
-            theta = 0.5 * np.arctan2(self.s2, self.c2).ravel()
-            self._unit = (np.cos(theta).tolist(), np.sin(theta).tolist())
+            self._unit = tuple(axis.tolist() for axis in self.unit_vectors())
         ny, nx = self.c2.shape
         i = min(max(int(y / self.res), 0), ny - 1)
         j = min(max(int(x / self.res), 0), nx - 1)

@@ -56,6 +56,42 @@ def test_front_running_alongside_a_road_is_blocked():
     assert tr.end == "blocked"
 
 
+def test_front_ignores_its_own_road_only_for_the_first_metres():
+    index = SegmentIndex()
+    index.add(np.array([[0.0, 250.0], [500.0, 250.0]]), road_id=7)  # the road it starts on
+    index.add(np.array([[400.0, 0.0], [400.0, 500.0]]), road_id=8)
+    params = GrowthParams(jitter=0.0, parallel_gap=40.0)
+    seeded = trace(np.array([100.0, 250.0]), np.array([1.0, 0.0]), uniform_field(0.0), index,
+                   (500, 500), params, np.random.default_rng(0), frozenset([7]), 30.0)
+    assert seeded.end == "blocked" and len(seeded.coords) == 4  # sees road 7 after 30 m
+    blind = trace(np.array([100.0, 250.0]), np.array([1.0, 0.0]), uniform_field(0.0), index,
+                  (500, 500), params, np.random.default_rng(0), frozenset([7]), 1000.0)
+    assert blind.end == "snap" and np.allclose(blind.coords[-1], [400.0, 250.0])
+
+
+def test_a_trace_draws_one_jitter_value_per_step():
+    """The jitter is drawn ahead in a batch; the generator must still end where one draw per
+    step leaves it, or every later road of the map would change with the batch size."""
+    index = SegmentIndex()
+    params = GrowthParams(jitter=2.0, max_length=300.0)
+    rng = np.random.default_rng(3)
+    tr = trace(np.array([20.0, 250.0]), np.array([1.0, 0.0]), uniform_field(0.0), index,
+               (500, 500), params, rng)
+    assert tr.end == "length" and len(tr.coords) == 31
+    reference = np.random.default_rng(3)
+    reference.normal(0.0, 2.0, size=30)
+    assert rng.normal() == reference.normal()
+
+
+def test_segment_index_grows_to_roads_outside_its_grid():
+    index = SegmentIndex(cell=50.0)
+    index.add(np.array([[10.0, 10.0], [40.0, 10.0]]), road_id=0)
+    index.add(np.array([[-900.0, 5000.0], [-700.0, 5000.0]]), road_id=1)
+    assert list(index.near(np.array([25.0, 10.0]), 5.0)) == [0]
+    assert list(index.road[index.near(np.array([-800.0, 5010.0]), 20.0)]) == [1]
+    assert len(index.near(np.array([2000.0, 2000.0]), 20.0)) == 0
+
+
 def test_a_star_links_a_dangling_end_to_the_nearest_road():
     roads = [(np.array([[0.0, 100.0], [400.0, 100.0]]), "arterial"),
              (np.array([[200.0, 100.0], [200.0, 160.0]]), "local"),
