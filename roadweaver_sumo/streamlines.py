@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 from numba import njit
 
@@ -115,7 +116,14 @@ class SegmentIndex:
         return self.a[ids], self.b[ids], self.road[ids]
 
 
-@njit(cache=True)
+# The compiled functions have explicit signatures, so numba compiles them (or, after the first
+# run, loads them from its cache next to this file) when this module is imported, as a C
+# extension is loaded, rather than inside the first map's generation.
+F8, I8 = nb.float64, nb.int64
+F8_1D, F8_2D, I8_1D, I8_2D = F8[::1], F8[:, ::1], I8[::1], I8[:, ::1]
+
+
+@njit(I8(I8_2D, I8_2D, I8, I8_2D, I8_1D, I8_1D, I8), cache=True)
 def _link_segments(lo, hi, first, head, entry_seg, entry_next, entries):
     """Prepend segment ``first + k`` to every grid cell from ``lo[k]`` to ``hi[k]``."""
     for k in range(len(lo)):
@@ -211,7 +219,18 @@ def trace(
     return Trace(out[:count].copy(), ENDS[end])
 
 
-@njit(cache=True)
+@njit(nb.boolean(I8_1D, I8), cache=True)
+def _contains(values, value) -> bool:
+    for v in values:
+        if v == value:
+            return True
+    return False
+
+
+@njit(nb.types.UniTuple(I8, 3)(
+    F8, F8, F8, F8, F8_1D, F8_1D, I8, I8, F8, F8_2D, F8_2D, I8_1D, I8_2D, I8_1D, I8_1D, I8, I8,
+    F8, F8, F8, F8, F8, F8, F8, F8_1D, F8, F8, F8, F8, nb.boolean, I8_1D, F8, I8, F8_2D),
+    cache=True)
 def _trace_steps(px, py, dx, dy, ux, uy, nx, ny, res, seg_a, seg_b, seg_road, head, entry_seg,
                  entry_next, ox, oy, cell, width, height, step, max_turn, w_tensor, w_inertia,
                  jitter, snap_radius, parallel_gap, max_length, min_cos, pass_through, ignored,
@@ -319,11 +338,3 @@ def _trace_steps(px, py, dx, dy, ux, uy, nx, ny, res, seg_a, seg_b, seg_road, he
         travelled += step
         if travelled >= max_length:
             return count, 4, used
-
-
-@njit(cache=True)
-def _contains(values, value) -> bool:
-    for v in values:
-        if v == value:
-            return True
-    return False
