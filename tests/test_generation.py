@@ -1,5 +1,6 @@
 """Skeleton and expansion on their own: density control, planarity, clean-up and style."""
 
+import gc
 import math
 
 import numpy as np
@@ -10,6 +11,7 @@ from shapely.geometry import LineString
 from roadweaver_sumo.expand import MIN_ANGLE, MIN_EDGE, expand_skeleton
 from roadweaver_sumo.expand.planar import _point_along, build_planar_graph, departure_angles
 from roadweaver_sumo.metrics import graph_metrics, road_node_count
+from roadweaver_sumo.pipeline import cyclic_gc_paused
 from roadweaver_sumo.roadgraph import edge_length
 from roadweaver_sumo.skeleton import make_skeleton
 from roadweaver_sumo.spec import ScenarioSpec
@@ -386,3 +388,18 @@ def test_point_along_matches_geos_interpolate_bit_for_bit():
         line = shapely.LineString(c)
         q = line.interpolate(min(20.0, line.length * 0.5))
         assert _point_along(c.tolist(), 20.0) == (q.x, q.y)
+
+
+def test_cycle_collector_is_paused_only_while_a_map_is_generated():
+    assert gc.isenabled()
+    with pytest.raises(RuntimeError), cyclic_gc_paused():
+        assert not gc.isenabled()
+        raise RuntimeError("a stage failed")
+    assert gc.isenabled()  # back on after a failure too
+    gc.disable()
+    try:
+        with cyclic_gc_paused():
+            pass
+        assert not gc.isenabled()  # a caller's own choice is left alone
+    finally:
+        gc.enable()
