@@ -5,7 +5,8 @@ Usage: python bench/scale.py [--sizes 2000,4000,10000] [--repeats 5,3,1] [--dens
                              [--skeleton procedural] [--osm FILE] [--json FILE]
 
 Every generation runs in its own process; its peak memory is the larger of its own ru_maxrss and
-the sampled sum over it and its children (the forked map writers, netconvert, duarouter);
+the sampled sum of proportional set sizes over it and its children (the forked map writers,
+netconvert, duarouter);
 "generation" is skeleton + expansion + hdmap + export (our files written), "total" adds
 netconvert and demand. Validation is not timed. Quality figures all come from ``evaluate``.
 CPU contention (a training job, the load average) is recorded, since it inflates every time.
@@ -49,10 +50,11 @@ def child(size: float, density: float, seed: int, skeleton: str, folder: Path) -
 
 
 class TreePeak(threading.Thread):
-    """Peak of the summed resident memory of process ``root`` and all its descendants (the
-    forked map writers, netconvert, duarouter), sampled every 0.1 s from this process so the
-    measured one is not slowed. An upper bound: pages a forked writer shares with its parent
-    count twice."""
+    """Peak of the summed memory of process ``root`` and all its descendants (the forked map
+    writers, netconvert, duarouter), sampled every 0.1 s from this process so the measured
+    one is not slowed. Each process counts its proportional set size (PSS): a page a forked
+    writer still shares with its parent counts half in each, so the sum is the memory the
+    tree really holds (resident sizes would count every shared page twice)."""
 
     def __init__(self, root: int) -> None:
         super().__init__(daemon=True)
@@ -60,7 +62,7 @@ class TreePeak(threading.Thread):
 
     def run(self) -> None:
         while not self._done.wait(0.1):
-            self.peak_mb = max(self.peak_mb, sum(_rss_mb(p) for p in _descendants(self.root)))
+            self.peak_mb = max(self.peak_mb, sum(_pss_mb(p) for p in _descendants(self.root)))
 
     def stop(self) -> None:
         self._done.set()
@@ -83,7 +85,15 @@ def _descendants(root: int) -> list[int]:
     return found
 
 
-def _rss_mb(pid: int) -> float:
+def _pss_mb(pid: int) -> float:
+    """Proportional set size (``/proc/PID/smaps_rollup``, Linux 4.14+); resident size where
+    that file is missing."""
+    try:
+        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+            if line.startswith("Pss:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
     try:
         for line in Path(f"/proc/{pid}/status").read_text().splitlines():
             if line.startswith("VmRSS:"):
