@@ -25,7 +25,7 @@ from shapely.geometry import LineString, Point, Polygon
 
 from ..metrics import road_node_count
 from ..roadgraph import add_road, edge_coords, edge_length
-from ..streamlines import choose_axis, clamp_turn
+from ..streamlines import choose_axis, follow_field
 from ..tensor_field import TensorField
 from .edge_index import EdgeIndex
 
@@ -336,15 +336,14 @@ def _trace_in_face(face: Polygon, start, d, field: TensorField,
     The path is traced in growing chunks and intersected with the boundary once per chunk (a
     shapely call per Euler step would dominate the run time)."""
     rings = [face.exterior, *face.interiors]  # inner rings: blocks hanging inside on bridges
-    x, y = float(start[0]), float(start[1])  # plain floats in the step loop: no 2-vectors
+    x, y = float(start[0]), float(start[1])
     pts = [(x, y)]
     d = np.asarray(d, float)
     for chunk in (4, 8, 16, 32, 64, 128):
         first = len(pts) - 1
-        for _ in range(chunk):
-            d = clamp_turn(d, choose_axis(field, (x, y), d), math.radians(8.0))
-            x, y = x + STEP * float(d[0]), y + STEP * float(d[1])
-            pts.append((x, y))
+        steps, d = follow_field(field, (x, y), d, chunk, math.radians(8.0), STEP)
+        pts.extend(steps.tolist())
+        x, y = pts[-1]
         path = LineString(np.asarray(pts[first:]))  # an array: no per-point conversion
         lines = rings + ([roads.lines[key] for key in roads.near(path, 0.0)] if roads else [])
         best = None
