@@ -162,6 +162,19 @@ def rotate(v: np.ndarray, ang: float) -> np.ndarray:
     return np.array([c * x - s * y, s * x + c * y])
 
 
+@njit(nb.types.UniTuple(F8, 2)(F8_1D, F8_1D, I8, I8, F8, F8, F8, F8, F8), cache=True)
+def _nearest_axis(ux, uy, nx, ny, res, x, y, dx, dy):
+    """Compiled :func:`choose_axis` on the field's flattened unit vectors (as ``major_at``)."""
+    k = min(max(int(y / res), 0), ny - 1) * nx + min(max(int(x / res), 0), nx - 1)
+    ex, ey = ux[k], uy[k]
+    along, across = ex * dx + ey * dy, ex * dy - ey * dx
+    if abs(along) >= abs(across):
+        sign = 1.0 if along >= 0 else -1.0
+        return sign * ex, sign * ey
+    sign = 1.0 if across >= 0 else -1.0
+    return -sign * ey, sign * ex
+
+
 def follow_field(field: TensorField, start, d: np.ndarray, count: int, max_turn_rad: float,
                  step: float) -> tuple[np.ndarray, np.ndarray]:
     """``count`` Euler steps from ``start`` along the field, each the nearest eigen-direction
@@ -181,15 +194,7 @@ def follow_field(field: TensorField, start, d: np.ndarray, count: int, max_turn_
       cache=True)
 def _follow_field(x, y, dx, dy, ux, uy, nx, ny, res, max_turn, step, out):
     for n in range(out.shape[0]):
-        k = min(max(int(y / res), 0), ny - 1) * nx + min(max(int(x / res), 0), nx - 1)
-        ex, ey = ux[k], uy[k]
-        along, across = ex * dx + ey * dy, ex * dy - ey * dx
-        if abs(along) >= abs(across):
-            sign = 1.0 if along >= 0 else -1.0
-            ax, ay = sign * ex, sign * ey
-        else:
-            sign = 1.0 if across >= 0 else -1.0
-            ax, ay = -sign * ey, sign * ex
+        ax, ay = _nearest_axis(ux, uy, nx, ny, res, x, y, dx, dy)
         ang = max(-max_turn, min(max_turn, math.atan2(dx * ay - dy * ax, dx * ax + dy * ay)))
         c, s = math.cos(ang), math.sin(ang)
         dx, dy = c * dx - s * dy, s * dx + c * dy
@@ -286,15 +291,7 @@ def _trace_steps(px, py, dx, dy, ux, uy, nx, ny, res, seg_a, seg_b, seg_road, he
     gy, gx = head.shape
     while True:
         # 1. direction
-        k = min(max(int(py / res), 0), ny - 1) * nx + min(max(int(px / res), 0), nx - 1)
-        ex, ey = ux[k], uy[k]
-        along, across = ex * dx + ey * dy, ex * dy - ey * dx
-        if abs(along) >= abs(across):
-            sign = 1.0 if along >= 0 else -1.0
-            ax, ay = sign * ex, sign * ey
-        else:
-            sign = 1.0 if across >= 0 else -1.0
-            ax, ay = -sign * ey, sign * ex
+        ax, ay = _nearest_axis(ux, uy, nx, ny, res, px, py, dx, dy)
         bx, by = w_tensor * ax + w_inertia * dx, w_tensor * ay + w_inertia * dy
         norm = np.hypot(bx, by)
         if norm > 1e-9:
