@@ -37,8 +37,8 @@ FIGURES = tuple(t.figure for t in THRESHOLDS) + (
 )
 # Packages whose versions change the bytes of a scenario: a hash drift on a machine with other
 # versions is then explained rather than a mystery.
-VERSIONED = ("eclipse-sumo", "numpy", "scipy", "shapely", "networkx", "scikit-image", "matplotlib",
-             "torch")
+VERSIONED = ("eclipse-sumo", "numpy", "numba", "scipy", "shapely", "networkx", "scikit-image",
+             "matplotlib", "torch")
 
 
 def file_hashes(folder: Path) -> dict[str, str]:
