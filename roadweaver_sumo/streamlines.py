@@ -102,15 +102,8 @@ class SegmentIndex:
         x0, y0 = int((x - radius) // self.cell), int((y - radius) // self.cell)
         x1, y1 = int((x + radius) // self.cell), int((y + radius) // self.cell)
         ox, oy = self.origin
-        ny, nx = self.head.shape
-        found: set[int] = set()
-        for cy in range(max(y0 - oy, 0), min(y1 - oy, ny - 1) + 1):
-            for cx in range(max(x0 - ox, 0), min(x1 - ox, nx - 1) + 1):
-                e = int(self.head[cy, cx])
-                while e >= 0:
-                    found.add(int(self.entry_seg[e]))
-                    e = int(self.entry_next[e])
-        return np.array(sorted(found), dtype=int)
+        return np.unique(_cell_segments(self.head, self.entry_seg, self.entry_next,
+                                        x0 - ox, y0 - oy, x1 - ox, y1 - oy))
 
     def arrays(self, ids: np.ndarray):
         return self.a[ids], self.b[ids], self.road[ids]
@@ -121,6 +114,26 @@ class SegmentIndex:
 # extension is loaded, rather than inside the first map's generation.
 F8, I8 = nb.float64, nb.int64
 F8_1D, F8_2D, I8_1D, I8_2D = F8[::1], F8[:, ::1], I8[::1], I8[:, ::1]
+
+
+@njit(I8_1D(I8_2D, I8_1D, I8_1D, I8, I8, I8, I8), cache=True)
+def _cell_segments(head, entry_seg, entry_next, x0, y0, x1, y1):
+    """The segments listed in grid cells x0..x1 by y0..y1 (clipped to the grid), with
+    repeats: a segment crossing several cells is listed in each."""
+    ny, nx = head.shape
+    count = 0
+    for step in range(2):  # count, then fill
+        found = np.empty(count, dtype=np.int64)
+        count = 0
+        for cy in range(max(y0, 0), min(y1, ny - 1) + 1):
+            for cx in range(max(x0, 0), min(x1, nx - 1) + 1):
+                e = head[cy, cx]
+                while e >= 0:
+                    if step == 1:
+                        found[count] = entry_seg[e]
+                    count += 1
+                    e = entry_next[e]
+    return found
 
 
 @njit(I8(I8_2D, I8_2D, I8, I8_2D, I8_1D, I8_1D, I8), cache=True)

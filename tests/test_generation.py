@@ -385,9 +385,10 @@ def test_point_along_matches_geos_interpolate_bit_for_bit():
         c += rng.uniform(0, 10000, 2)
         if rng.random() < 0.1:
             c[1] = c[0]  # a zero-length step
-        line = shapely.LineString(c)
-        q = line.interpolate(min(20.0, line.length * 0.5))
-        assert _point_along(c.tolist(), 20.0) == (q.x, q.y)
+        for coords in (c, c[::-1]):  # a reversed view too: how a road's far end is read
+            line = shapely.LineString(coords)
+            q = line.interpolate(min(20.0, line.length * 0.5))
+            assert _point_along(coords, 20.0) == (q.x, q.y)
 
 
 def test_cycle_collector_is_paused_only_while_a_map_is_generated():

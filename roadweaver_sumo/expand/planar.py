@@ -8,13 +8,14 @@ too sharp, stubs that run off the map, and fragments outside the largest compone
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import networkx as nx
+import numba as nb
 import numpy as np
 import shapely
 import shapely.ops
+from numba import njit
 from scipy.spatial import cKDTree
 
 from ..roadgraph import ROAD_CLASSES, add_road, edge_coords, edge_length, new_road_graph
@@ -208,39 +209,44 @@ def departure_angles(
         if hit is not None and hit[0] is coords:
             out.append((hit[1], w))
             continue
-        c = edge_coords(G, n, w).tolist()
+        c = edge_coords(G, n, w)
         qx, qy = _point_along(c, probe)
-        bearing = math.atan2(qy - c[0][1], qx - c[0][0])
+        bearing = math.atan2(qy - float(c[0, 1]), qx - float(c[0, 0]))
         if cache is not None:
             cache[(n, w)] = (coords, bearing)
         out.append((bearing, w))
     return sorted(out)
 
 
-def _point_along(c: list, probe: float) -> tuple[float, float]:
-    """The point ``min(probe, half the length)`` along polyline ``c``, computed as GEOS's
-    ``interpolate`` does, step for step (so the same bits), without building a LineString:
-    clean-up measures tens of thousands of these."""
-    steps = [math.sqrt((x1 - x0) * (x1 - x0) + (y1 - y0) * (y1 - y0))
-             for (x0, y0), (x1, y1) in itertools.pairwise(c)]
+def _point_along(c: np.ndarray, probe: float) -> tuple[float, float]:
+    """The point ``min(probe, half the length)`` along polyline ``c`` (n x 2), computed as
+    GEOS's ``interpolate`` does, step for step (so the same bits), without building a
+    LineString: clean-up measures tens of thousands of these, hence compiled."""
+    return _point_along_steps(np.asarray(c, dtype=np.float64), float(probe))
+
+
+@njit(nb.types.UniTuple(nb.float64, 2)(nb.float64[:, :], nb.float64), cache=True)
+def _point_along_steps(c, probe):
     total = 0.0
-    for step in steps:  # GEOS Length::ofLine: a running sum in order
-        total += step
+    for k in range(len(c) - 1):  # GEOS Length::ofLine: a running sum in order
+        total += math.sqrt((c[k + 1, 0] - c[k, 0]) * (c[k + 1, 0] - c[k, 0])
+                           + (c[k + 1, 1] - c[k, 1]) * (c[k + 1, 1] - c[k, 1]))
     target = min(probe, total * 0.5)
     if target <= 0.0:
-        return c[0][0], c[0][1]
+        return c[0, 0], c[0, 1]
     done = 0.0
-    for k, step in enumerate(steps):  # GEOS LengthLocationMap::getLocationForward
+    for k in range(len(c) - 1):  # GEOS LengthLocationMap::getLocationForward
+        x0, y0, x1, y1 = c[k, 0], c[k, 1], c[k + 1, 0], c[k + 1, 1]
+        step = math.sqrt((x1 - x0) * (x1 - x0) + (y1 - y0) * (y1 - y0))
         if done + step > target:
             frac = (target - done) / step
-            (x0, y0), (x1, y1) = c[k], c[k + 1]
             if frac <= 0.0:
                 return x0, y0
             if frac >= 1.0:
                 return x1, y1
             return (x1 - x0) * frac + x0, (y1 - y0) * frac + y0
         done += step
-    return c[-1][0], c[-1][1]
+    return c[-1, 0], c[-1, 1]
 
 
 def remove_sharp_angles(G: nx.Graph, min_angle_deg: float, cache: dict | None = None) -> int:
