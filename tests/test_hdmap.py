@@ -10,6 +10,7 @@ import pytest
 from shapely.geometry import LineString, Point, Polygon
 
 from roadweaver_sumo.hdmap import LANE_CONFIGS, build_hdmap, hdmap_metrics, lane_reachability
+from roadweaver_sumo.hdmap.geometry import arc_lengths
 from roadweaver_sumo.hdmap.junctions import junction_type
 from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
@@ -357,3 +358,14 @@ def test_no_two_lanes_merge_inside_a_junction_where_a_road_turns_off():
             entered = Counter((built.lanes[built.lanes[c].predecessors[0]].edge,
                                built.lanes[c].successors[0]) for c in junction.connectors)
             assert max(entered.values()) == 1, (name, junction.id, entered.most_common(1))
+
+
+def test_compiled_arc_lengths_match_numpy_bit_for_bit():
+    """Lane cuts and junction trims read arc lengths; a last-bit change would move lane ends."""
+    rng = np.random.default_rng(0)
+    for _ in range(2000):
+        c = np.cumsum(rng.normal(0, rng.choice([0.1, 5.0, 50.0]), (int(rng.integers(2, 40)), 2)),
+                      axis=0) + rng.uniform(0, 1e4, 2)
+        for coords in (c, c[::-1]):
+            numpy_way = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(coords, axis=0).T))])
+            assert np.array_equal(arc_lengths(coords), numpy_way)
