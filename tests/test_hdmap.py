@@ -10,7 +10,13 @@ import pytest
 from shapely.geometry import LineString, Point, Polygon
 
 from roadweaver_sumo.hdmap import LANE_CONFIGS, build_hdmap, hdmap_metrics, lane_reachability
-from roadweaver_sumo.hdmap.geometry import arc_lengths
+from roadweaver_sumo.hdmap.geometry import (
+    MAX_MITER,
+    _left,
+    arc_lengths,
+    miter_normals,
+    unit_tangent,
+)
 from roadweaver_sumo.hdmap.junctions import junction_type
 from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
@@ -360,8 +366,9 @@ def test_no_two_lanes_merge_inside_a_junction_where_a_road_turns_off():
             assert max(entered.values()) == 1, (name, junction.id, entered.most_common(1))
 
 
-def test_compiled_arc_lengths_match_numpy_bit_for_bit():
-    """Lane cuts and junction trims read arc lengths; a last-bit change would move lane ends."""
+def test_compiled_lane_geometry_matches_numpy_bit_for_bit():
+    """Lane cuts, junction trims and lane boundaries read arc lengths and miter normals,
+    compiled; a last-bit change would move lane ends and boundaries."""
     rng = np.random.default_rng(0)
     for _ in range(2000):
         c = np.cumsum(rng.normal(0, rng.choice([0.1, 5.0, 50.0]), (int(rng.integers(2, 40)), 2)),
@@ -369,3 +376,8 @@ def test_compiled_arc_lengths_match_numpy_bit_for_bit():
         for coords in (c, c[::-1]):
             numpy_way = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(coords, axis=0).T))])
             assert np.array_equal(arc_lengths(coords), numpy_way)
+            seg_n = _left(unit_tangent(np.diff(coords, axis=0)))
+            vert_n = unit_tangent(np.vstack([seg_n[:1], seg_n[:-1] + seg_n[1:], seg_n[-1:]]))
+            cos_half = np.einsum("ij,ij->i", vert_n, np.vstack([seg_n[:1], seg_n]))
+            numpy_way = vert_n / np.clip(cos_half, 1.0 / MAX_MITER, None)[:, None]
+            assert np.array_equal(miter_normals(coords), numpy_way)

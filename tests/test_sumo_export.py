@@ -15,7 +15,7 @@ from shapely.geometry import LineString, Point
 from roadweaver_sumo.errors import RoadweaverError
 from roadweaver_sumo.export import map_files
 from roadweaver_sumo.export.netconvert import available_templates, run_netconvert
-from roadweaver_sumo.export.sumo_plain import lane_connections, write_plain
+from roadweaver_sumo.export.sumo_plain import _num, _shape, lane_connections, write_plain
 from roadweaver_sumo.hdmap import build_hdmap
 from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
@@ -216,3 +216,16 @@ def test_error_in_a_forked_writer_is_raised_here(tmp_path, monkeypatch):
     with pytest.raises(OSError, match="No space left on device"):
         map_files.write_map_files(build_hdmap(town(), GEO_ORIGIN), tmp_path)
     assert (tmp_path / "plain/map.con.xml").is_file()  # the other writers still finished
+
+
+def test_shapes_write_every_number_as_single_numbers_are_written():
+    """Shapes are formatted a line at a time; each number must read as ``_num`` writes it,
+    ``-0.00`` never (SUMO would read it fine, but the bytes of every net would change)."""
+    edge = [0.0, -0.0, -0.005, 0.005, -0.004999, 0.125, -0.125, 2.675, -2.675, 1e-300,
+            -1e-300, 0.995, 9999.995, -0.0051]
+    rng = np.random.default_rng(0)
+    lines = [np.array(np.meshgrid(edge, edge)).reshape(2, -1).T]
+    lines += [rng.normal(0, scale, (20, 2)) for scale in (0.01, 1.0, 5000.0)]
+    for line in lines:
+        assert _shape(line) == " ".join(f"{_num(x)},{_num(y)}" for x, y in line)
+    assert "-0.00," not in _shape(lines[0]) and "0.00,0.00" in _shape(lines[0])

@@ -16,6 +16,7 @@ import math
 from collections import Counter
 from pathlib import Path
 
+import numpy as np
 from lxml import etree
 
 from ..hdmap.model import DIRECTIONS, HDMap, edge_id
@@ -36,7 +37,11 @@ def _num(x: float) -> str:
 
 
 def _shape(coords) -> str:
-    return " ".join(f"{_num(x)},{_num(y)}" for x, y in coords)
+    """``x,y x,y ...`` with each number as :func:`_num` writes it (``%.2f`` rounds as
+    ``round`` does; what would print as ``-0.00`` is zeroed first), a whole line at once."""
+    xy = np.asarray(coords, dtype=float)
+    xy = np.where((xy > -0.005) & (xy <= 0.0), 0.0, xy)
+    return " ".join(map("%.2f,%.2f".__mod__, map(tuple, xy.tolist())))
 
 
 def _root(tag: str, schema: str) -> etree._Element:

@@ -96,10 +96,35 @@ def miter_normals(coords: np.ndarray) -> np.ndarray:
     parallel to its original), so every lane boundary of a road shares the reference line's
     vertices (paper Algorithm 1, GenerateLaneBoundaries).
     """
-    seg_n = _left(unit_tangent(np.diff(coords, axis=0)))
-    vert_n = unit_tangent(np.vstack([seg_n[:1], seg_n[:-1] + seg_n[1:], seg_n[-1:]]))
-    cos_half = np.einsum("ij,ij->i", vert_n, np.vstack([seg_n[:1], seg_n]))
-    return vert_n / np.clip(cos_half, 1.0 / MAX_MITER, None)[:, None]
+    return _miter_normals(np.asarray(coords, dtype=np.float64), 1.0 / MAX_MITER)
+
+
+@njit(nb.float64[:, ::1](nb.float64[:, :], nb.float64), cache=True)
+def _miter_normals(coords, min_cos):
+    """Compiled (one call per road, where numpy's per-call overhead dominated), the same bits
+    as the numpy expressions: unit segment normals, their per-vertex sums normalised, each
+    stretched by 1 / cos(half the turn) capped at ``1 / min_cos``."""
+    n = len(coords)
+    seg = np.empty((n - 1, 2))
+    for k in range(n - 1):
+        dx, dy = coords[k + 1, 0] - coords[k, 0], coords[k + 1, 1] - coords[k, 1]
+        norm = np.sqrt(dx * dx + dy * dy)
+        seg[k, 0], seg[k, 1] = -(dy / norm), dx / norm
+    out = np.empty((n, 2))
+    for k in range(n):
+        before = seg[max(k - 1, 0)]
+        after = seg[min(k, n - 2)]
+        if 0 < k < n - 1:
+            vx, vy = before[0] + after[0], before[1] + after[1]
+        else:
+            vx, vy = after[0], after[1]
+        norm = np.sqrt(vx * vx + vy * vy)
+        vx, vy = vx / norm, vy / norm
+        cos_half = vx * before[0] + vy * before[1]
+        if cos_half < min_cos:  # noqa: PLR1730 - as np.clip: a NaN (a fold back) stays NaN
+            cos_half = min_cos
+        out[k, 0], out[k, 1] = vx / cos_half, vy / cos_half
+    return out
 
 
 def offset(coords: np.ndarray, distances, miter: np.ndarray | None = None) -> np.ndarray:
