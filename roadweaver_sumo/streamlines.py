@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
-from numba import njit
 
+from .compiled import F8, F8_1D, F8_2D, I8, I8_1D, I8_2D, compiled
 from .tensor_field import TensorField
 
 
@@ -109,14 +109,7 @@ class SegmentIndex:
         return self.a[ids], self.b[ids], self.road[ids]
 
 
-# The compiled functions have explicit signatures, so numba compiles them (or, after the first
-# run, loads them from its cache next to this file) when this module is imported, as a C
-# extension is loaded, rather than inside the first map's generation.
-F8, I8 = nb.float64, nb.int64
-F8_1D, F8_2D, I8_1D, I8_2D = F8[::1], F8[:, ::1], I8[::1], I8[:, ::1]
-
-
-@njit(I8_1D(I8_2D, I8_1D, I8_1D, I8, I8, I8, I8), cache=True)
+@compiled(I8_1D(I8_2D, I8_1D, I8_1D, I8, I8, I8, I8))
 def _cell_segments(head, entry_seg, entry_next, x0, y0, x1, y1):
     """The segments listed in grid cells x0..x1 by y0..y1 (clipped to the grid), with
     repeats: a segment crossing several cells is listed in each."""
@@ -136,7 +129,7 @@ def _cell_segments(head, entry_seg, entry_next, x0, y0, x1, y1):
     return found
 
 
-@njit(I8(I8_2D, I8_2D, I8, I8_2D, I8_1D, I8_1D, I8), cache=True)
+@compiled(I8(I8_2D, I8_2D, I8, I8_2D, I8_1D, I8_1D, I8))
 def _link_segments(lo, hi, first, head, entry_seg, entry_next, entries):
     """Prepend segment ``first + k`` to every grid cell from ``lo[k]`` to ``hi[k]``."""
     for k in range(len(lo)):
@@ -175,7 +168,7 @@ def rotate(v: np.ndarray, ang: float) -> np.ndarray:
     return np.array([c * x - s * y, s * x + c * y])
 
 
-@njit(nb.types.UniTuple(F8, 2)(F8_1D, F8_1D, I8, I8, F8, F8, F8, F8, F8), cache=True)
+@compiled(nb.types.UniTuple(F8, 2)(F8_1D, F8_1D, I8, I8, F8, F8, F8, F8, F8))
 def _nearest_axis(ux, uy, nx, ny, res, x, y, dx, dy):
     """Compiled :func:`choose_axis` on the field's flattened unit vectors (as ``major_at``)."""
     k = min(max(int(y / res), 0), ny - 1) * nx + min(max(int(x / res), 0), nx - 1)
@@ -203,8 +196,7 @@ def follow_field(field: TensorField, start, d: np.ndarray, count: int, max_turn_
     return out, np.array([dx, dy])
 
 
-@njit(nb.types.UniTuple(F8, 2)(F8, F8, F8, F8, F8_1D, F8_1D, I8, I8, F8, F8, F8, F8_2D),
-      cache=True)
+@compiled(nb.types.UniTuple(F8, 2)(F8, F8, F8, F8, F8_1D, F8_1D, I8, I8, F8, F8, F8, F8_2D))
 def _follow_field(x, y, dx, dy, ux, uy, nx, ny, res, max_turn, step, out):
     for n in range(out.shape[0]):
         ax, ay = _nearest_axis(ux, uy, nx, ny, res, x, y, dx, dy)
@@ -273,7 +265,7 @@ def trace(
     return Trace(out[:count].copy(), ENDS[end])
 
 
-@njit(nb.boolean(I8_1D, I8), cache=True)
+@compiled(nb.boolean(I8_1D, I8))
 def _contains(values, value) -> bool:
     for v in values:
         if v == value:
@@ -281,10 +273,9 @@ def _contains(values, value) -> bool:
     return False
 
 
-@njit(nb.types.UniTuple(I8, 3)(
+@compiled(nb.types.UniTuple(I8, 3)(
     F8, F8, F8, F8, F8_1D, F8_1D, I8, I8, F8, F8_2D, F8_2D, I8_1D, I8_2D, I8_1D, I8_1D, I8, I8,
-    F8, F8, F8, F8, F8, F8, F8, F8_1D, F8, F8, F8, F8, nb.boolean, I8_1D, F8, I8, F8_2D),
-    cache=True)
+    F8, F8, F8, F8, F8, F8, F8, F8_1D, F8, F8, F8, F8, nb.boolean, I8_1D, F8, I8, F8_2D))
 def _trace_steps(px, py, dx, dy, ux, uy, nx, ny, res, seg_a, seg_b, seg_road, head, entry_seg,
                  entry_next, ox, oy, cell, width, height, step, max_turn, w_tensor, w_inertia,
                  jitter, snap_radius, parallel_gap, max_length, min_cos, pass_through, ignored,

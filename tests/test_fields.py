@@ -2,8 +2,11 @@
 
 import math
 
+import numba.core.caching
 import numpy as np
+import pytest
 
+from roadweaver_sumo.compiled import F8, compiled
 from roadweaver_sumo.expand.planar import build_planar_graph
 from roadweaver_sumo.expand.reconnect import reconnect_dangles
 from roadweaver_sumo.streamlines import (
@@ -144,3 +147,16 @@ def test_junctions_placed_on_a_rectangular_field():
     place_junctions(G, heat, res)
     for n in junctions:
         assert np.hypot(G.nodes[n]["xy"][0] - 85.0, G.nodes[n]["xy"][1] - 305.0) < res
+
+
+def test_compiled_functions_work_where_no_cache_can_be_written(monkeypatch):
+    """A read-only install with no writable cache directory must still import: numba then
+    refuses to cache, and the function is compiled uncached instead."""
+    monkeypatch.setattr(numba.core.caching.CacheImpl, "_locator_classes", [])
+
+    def add_one(x):
+        return x + 1.0
+
+    with pytest.raises(RuntimeError, match="cannot cache"):
+        numba.njit(F8(F8), cache=True)(add_one)
+    assert compiled(F8(F8))(add_one)(1.5) == 2.5

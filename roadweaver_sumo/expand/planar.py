@@ -15,9 +15,9 @@ import numba as nb
 import numpy as np
 import shapely
 import shapely.ops
-from numba import njit
 from scipy.spatial import cKDTree
 
+from ..compiled import F8, F8_2D_ANY, compiled
 from ..roadgraph import ROAD_CLASSES, add_road, edge_coords, edge_length, new_road_graph
 from ..skeleton.model import PERIMETER_INSET
 
@@ -225,7 +225,7 @@ def _point_along(c: np.ndarray, probe: float) -> tuple[float, float]:
     return _point_along_steps(np.asarray(c, dtype=np.float64), float(probe))
 
 
-@njit(nb.types.UniTuple(nb.float64, 2)(nb.float64[:, :], nb.float64), cache=True)
+@compiled(nb.types.UniTuple(F8, 2)(F8_2D_ANY, F8))
 def _point_along_steps(c, probe):
     total = 0.0
     for k in range(len(c) - 1):  # GEOS Length::ofLine: a running sum in order

@@ -5,9 +5,9 @@ Offsets are positive to the left of the driving direction (x east, y north, metr
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
-from numba import njit
+
+from ..compiled import F8, F8_1D, F8_2D, F8_2D_ANY, compiled
 
 MAX_MITER = 4.0  # cap on the miter stretch at sharp vertices, so offsets never spike
 BEZIER_SAMPLES = 12  # a 90° turn of 8 m radius: 2 cm from the true curve
@@ -34,7 +34,7 @@ def arc_lengths(coords: np.ndarray) -> np.ndarray:
     return _arc_lengths(np.asarray(coords, dtype=np.float64))
 
 
-@njit(nb.float64[::1](nb.float64[:, :]), cache=True)
+@compiled(F8_1D(F8_2D_ANY))
 def _arc_lengths(coords):
     out = np.empty(len(coords))
     out[0] = 0.0
@@ -99,7 +99,7 @@ def miter_normals(coords: np.ndarray) -> np.ndarray:
     return _miter_normals(np.asarray(coords, dtype=np.float64), 1.0 / MAX_MITER)
 
 
-@njit(nb.float64[:, ::1](nb.float64[:, :], nb.float64), cache=True)
+@compiled(F8_2D(F8_2D_ANY, F8))
 def _miter_normals(coords, min_cos):
     """Compiled (one call per road, where numpy's per-call overhead dominated), the same bits
     as the numpy expressions: unit segment normals, their per-vertex sums normalised, each
