@@ -7,6 +7,7 @@ Every user error ends in one line on stderr, ``roadweaver-sumo: error: ...``, an
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import sys
 import time
@@ -303,10 +304,8 @@ def _add_train_commands(sub) -> None:
 def _train(args) -> int:
     from dataclasses import replace
 
-    from .skeleton import torch_available
-
-    if not torch_available():
-        raise RoadweaverError("training needs torch: pip install 'roadweaver-sumo[learned]'")
+    if importlib.util.find_spec("torch") is None:
+        raise RoadweaverError("training needs torch: pip install 'roadweaver-sumo[train]'")
     from .generative import settings as defaults
     from .generative import training
 

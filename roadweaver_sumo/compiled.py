@@ -16,17 +16,20 @@ from numba import njit
 F8, I8 = nb.float64, nb.int64
 F8_1D, F8_2D, I8_1D, I8_2D = F8[::1], F8[:, ::1], I8[::1], I8[:, ::1]
 F8_2D_ANY = F8[:, :]  # any layout: reversed or sliced views of coordinate arrays
+F4 = nb.float32
+F4_1D, F4_2D, F4_3D = F4[::1], F4[:, ::1], F4[:, :, ::1]
 
 
-def compiled(signature):
-    """``numba.njit(signature, cache=True)``, or uncached where no cache can be written."""
+def compiled(signature, **options):
+    """``numba.njit(signature, cache=True, **options)``, or uncached where no cache can be
+    written."""
 
     def decorate(function):
         try:
-            return njit(signature, cache=True)(function)
+            return njit(signature, cache=True, **options)(function)
         except RuntimeError as error:  # "cannot cache function ...: no locator available"
             if "cannot cache" not in str(error):
                 raise
-            return njit(signature)(function)
+            return njit(signature, **options)(function)
 
     return decorate

@@ -1,8 +1,10 @@
 """The learned skeleton: training loops and checkpoints on a tiny dataset made here, sampling
-(in-painting, determinism), the shipped weights, the CLI, and the fallback without torch."""
+(in-painting, determinism), numpy inference against the torch modules, the shipped weights
+(sampled without torch) and the CLI."""
 
 import math
-import warnings
+import subprocess
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -19,11 +21,16 @@ from roadweaver_sumo.generative.checkpoint import (
     load_vqvae,
     read_checkpoint,
 )
+from roadweaver_sumo.generative.inference import TorchUniform
 from roadweaver_sumo.generative.maskgit import MaskGIT
-from roadweaver_sumo.generative.sampling import Generator, sample_field, window_starts
+from roadweaver_sumo.generative.sampling import (
+    Generator,
+    decode_canvas,
+    sample_field,
+    window_starts,
+)
 from roadweaver_sumo.generative.settings import MaskGITConfig, TrainSettings, VQVAEConfig
 from roadweaver_sumo.generative.training import train_maskgit, train_vqvae
-from roadweaver_sumo.skeleton import TorchMissingWarning, make_skeleton, skeleton_generator
 from roadweaver_sumo.skeleton.learned import learned_skeleton, stroke_classes
 from roadweaver_sumo.spec import ScenarioSpec
 
@@ -77,9 +84,9 @@ def tiny_dataset(tmp_path_factory) -> Path:
 def tiny_models(tiny_dataset, tmp_path_factory):
     root = tmp_path_factory.mktemp("models")
     vq_settings = TrainSettings(steps=6, batch=4, lr=1e-3, eval_every=3)
-    vq_meta = train_vqvae(tiny_dataset, root / "vq.pt", vq_settings, TINY_VQ, log=lambda m: None)
+    vq_meta = train_vqvae(tiny_dataset, root / "vq.npz", vq_settings, TINY_VQ, log=lambda m: None)
     mg_settings = TrainSettings(steps=6, batch=4, lr=1e-3, eval_every=3)
-    mg_meta = train_maskgit(tiny_dataset, root / "vq.pt", root / "mg.pt", mg_settings, TINY_MG,
+    mg_meta = train_maskgit(tiny_dataset, root / "vq.npz", root / "mg.npz", mg_settings, TINY_MG,
                             log=lambda m: None)
     return root, vq_meta, mg_meta
 
@@ -101,14 +108,14 @@ def test_training_records_losses_and_metrics(tiny_models):
 def test_training_is_reproducible_by_seed(tiny_dataset, tiny_models, tmp_path):
     root, _, _ = tiny_models
     settings = TrainSettings(steps=6, batch=4, lr=1e-3, eval_every=3)
-    train_vqvae(tiny_dataset, tmp_path / "again.pt", settings, TINY_VQ, log=lambda m: None)
-    a, _ = read_checkpoint(root / "vq.pt", "vqvae")
-    b, _ = read_checkpoint(tmp_path / "again.pt", "vqvae")
-    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
-    train_vqvae(tiny_dataset, tmp_path / "other.pt", replace(settings, seed=1), TINY_VQ,
+    train_vqvae(tiny_dataset, tmp_path / "again.npz", settings, TINY_VQ, log=lambda m: None)
+    a, _ = read_checkpoint(root / "vq.npz", "vqvae")
+    b, _ = read_checkpoint(tmp_path / "again.npz", "vqvae")
+    assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+    train_vqvae(tiny_dataset, tmp_path / "other.npz", replace(settings, seed=1), TINY_VQ,
                 log=lambda m: None)
-    c, _ = read_checkpoint(tmp_path / "other.pt", "vqvae")
-    assert not all(torch.equal(a[k], c[k]) for k in a)
+    c, _ = read_checkpoint(tmp_path / "other.npz", "vqvae")
+    assert not all(np.array_equal(a[k], c[k]) for k in a)
 
 
 def test_second_token_group_is_predicted_given_the_first():
@@ -136,21 +143,21 @@ def test_second_token_group_is_predicted_given_the_first():
 
 def test_checkpoint_round_trip_and_bad_files(tiny_models, tmp_path):
     root, _, _ = tiny_models
-    vq, meta = load_vqvae(root / "vq.pt")
+    vq, meta = load_vqvae(root / "vq.npz")
     assert vq.cfg == TINY_VQ and meta["config"] == TINY_VQ.to_dict()
     with pytest.raises(Exception, match="expected 'maskgit'"):
-        load_maskgit(root / "vq.pt")
-    junk = tmp_path / "junk.pt"
+        load_maskgit(root / "vq.npz")
+    junk = tmp_path / "junk.npz"
     junk.write_bytes(b"not a checkpoint")
     with pytest.raises(Exception, match="not a roadweaver-sumo checkpoint"):
         load_vqvae(junk)
     with pytest.raises(Exception, match="not found"):
-        load_vqvae(tmp_path / "missing.pt")
+        load_vqvae(tmp_path / "missing.npz")
 
 
 def test_sampling_any_extent_is_deterministic(tiny_models):
     root, _, _ = tiny_models
-    gen = Generator.load(root / "vq.pt", root / "mg.pt")
+    gen = Generator.load(root / "vq.npz", root / "mg.npz")
     c = np.zeros(11, dtype=np.float32)
     F1, res = sample_field(gen, c, 1000.0, 600.0, seed=3)
     F2, _ = sample_field(gen, c, 1000.0, 600.0, seed=3)
@@ -162,17 +169,17 @@ def test_sampling_any_extent_is_deterministic(tiny_models):
     assert F1[..., 1:3].min() >= -1 and F1[..., 1:3].max() <= 1
 
 
-def test_inpainting_keeps_known_tokens():
-    torch.manual_seed(0)
-    model = MaskGIT(MaskGITConfig(dim=32, depth=1, heads=2, codebook_size=16, groups=2,
-                                  grid=4)).eval()
-    known = torch.randint(0, 16, (1, 16, 2))
-    known_mask = torch.zeros(1, 16, dtype=torch.bool)
-    known_mask[0, :8] = True
-    out = model.sample(torch.zeros(1, 11), torch.Generator().manual_seed(0), steps=4,
-                       known=known, known_mask=known_mask)
-    assert torch.equal(out[0, :8], known[0, :8])
-    assert out.min() >= 0 and out.max() < 16
+def test_inpainting_keeps_known_tokens(tiny_models):
+    root, _, _ = tiny_models
+    gen = Generator.load(root / "vq.npz", root / "mg.npz")
+    n, G = gen.grid ** 2, gen.sampler.cfg.groups
+    known = np.random.default_rng(0).integers(0, gen.sampler.cfg.codebook_size, (n, G))
+    known_mask = np.arange(n) < n // 2
+    rows = gen.sampler.condition(np.zeros(11, np.float32), guidance=1.0)
+    out = gen.sampler.sample(rows, TorchUniform(0), steps=4, known=known, known_mask=known_mask,
+                             temperature=1.25, guidance=1.0)
+    assert np.array_equal(out[known_mask], known[known_mask])
+    assert out.min() >= 0 and out.max() < gen.sampler.cfg.codebook_size
 
 
 def test_window_starts_cover_the_canvas_with_half_overlap():
@@ -201,7 +208,7 @@ def test_stroke_classes_rank_long_straight_roads_first():
 
 @pytest.mark.skipif(not SHIPPED_MASKGIT.is_file(), reason="weights not trained yet")
 def test_shipped_weights_give_a_learned_skeleton():
-    total = sum(p.stat().st_size for p in SHIPPED_VQVAE.parent.glob("*.pt"))
+    total = sum(p.stat().st_size for p in SHIPPED_VQVAE.parent.glob("*.npz"))
     assert total <= 20 * 2**20
     spec = ScenarioSpec(density=30, vehicles=10, width=2500, height=2000, skeleton="learned")
     sk = learned_skeleton(spec)
@@ -214,35 +221,70 @@ def test_shipped_weights_give_a_learned_skeleton():
     assert sk.road_prob.shape == sk.basis.c2.shape == (200, 250)
 
 
-def test_learned_falls_back_to_procedural_without_torch(monkeypatch):
-    import roadweaver_sumo.skeleton as skeleton_pkg
+def test_uniform_stream_is_torch_rand():
+    """The sampler's random numbers are torch.rand's for the same seed, in the same order."""
+    g = torch.Generator().manual_seed(1234)
+    ours = TorchUniform(1234)
+    for shape in [(3,), (1, 300), (50, 1)]:
+        assert np.array_equal(ours.rand(*shape), torch.rand(*shape, generator=g).numpy())
 
-    monkeypatch.setattr(skeleton_pkg, "torch_available", lambda: False)
-    spec = ScenarioSpec(density=30, vehicles=10, width=1000, height=1000, skeleton="learned")
-    with pytest.warns(TorchMissingWarning, match="torch is not installed"):
-        assert skeleton_generator(spec) == "procedural"
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", TorchMissingWarning)
-        sk = make_skeleton(spec)
-    assert sk.classes == []  # the procedural generator's
+
+def test_numpy_inference_matches_the_torch_modules(tiny_models):
+    """The numpy forward passes compute what the trained torch modules compute, within float32
+    rounding: transformer features, a chained group's logits, decoded fields."""
+    root, _, _ = tiny_models
+    gen = Generator.load(root / "vq.npz", root / "mg.npz")
+    vq, _ = load_vqvae(root / "vq.npz")
+    mg, _ = load_maskgit(root / "mg.npz")
+    rng = np.random.default_rng(0)
+    n = mg.cfg.grid ** 2
+    tokens = rng.integers(0, mg.cfg.codebook_size, (n, mg.cfg.groups))
+    masked = rng.random(n) < 0.5
+    cond = rng.normal(size=11).astype(np.float32)
+    with torch.no_grad():
+        expected = mg.trunk(torch.from_numpy(tokens).repeat(2, 1, 1),
+                            torch.from_numpy(masked).repeat(2, 1), torch.from_numpy(cond).repeat(2, 1),
+                            torch.tensor([False, True])).numpy()
+    rows = gen.sampler.condition(cond, guidance=1.0)
+    ours = np.stack([gen.sampler.trunk(tokens, masked, row) for row in rows])
+    assert np.allclose(ours, expected, atol=1e-5)
+    canvas = rng.integers(0, vq.cfg.codebook_size, (5, 7, vq.cfg.groups))
+    with torch.no_grad():
+        field = vq.decode(torch.from_numpy(canvas)[None])[0].permute(1, 2, 0).numpy()
+    assert np.allclose(decode_canvas(gen.decoder, canvas), field, atol=1e-5)
+    h = ours[0][masked]
+    earlier = tokens[masked][:, :1]
+    with torch.no_grad():
+        want = mg.group_logits(torch.from_numpy(h), 1, torch.from_numpy(earlier)).numpy()
+    assert np.allclose(gen.sampler.group_logits(h, 1, earlier), want, atol=1e-5)
+
+
+def test_learned_skeleton_needs_no_torch():
+    """Sampling a map imports neither torch nor anything that pulls it in."""
+    code = ("import sys; from roadweaver_sumo.spec import ScenarioSpec; "
+            "from roadweaver_sumo.skeleton import make_skeleton; "
+            "sk = make_skeleton(ScenarioSpec(density=30, vehicles=10, width=1000, height=1000)); "
+            "assert sk.provenance['generator'] == 'learned' and sk.polylines; "
+            "assert 'torch' not in sys.modules, 'torch was imported'")
+    subprocess.run([sys.executable, "-c", code], check=True)
 
 
 def test_train_cli_errors_are_one_line(tmp_path, capsys):
     assert cli.main(["train", "vqvae", "--data", str(tmp_path), "--out",
-                     str(tmp_path / "m.pt")]) == 2
+                     str(tmp_path / "m.npz")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "not a prepared dataset" in err
-    (tmp_path / "m.pt").write_bytes(b"x")
-    assert cli.main(["train", "maskgit", "--data", str(tmp_path), "--vqvae", "v.pt", "--out",
-                     str(tmp_path / "m.pt")]) == 2
+    (tmp_path / "m.npz").write_bytes(b"x")
+    assert cli.main(["train", "maskgit", "--data", str(tmp_path), "--vqvae", "v.npz", "--out",
+                     str(tmp_path / "m.npz")]) == 2
     assert "pass --force" in capsys.readouterr().err
-    assert cli.main(["train", "vqvae", "--data", str(tmp_path), "--out", str(tmp_path / "n.pt"),
+    assert cli.main(["train", "vqvae", "--data", str(tmp_path), "--out", str(tmp_path / "n.npz"),
                      "--steps", "0"]) == 2
     assert "error" in capsys.readouterr().err
 
 
 def test_train_cli_writes_a_checkpoint(tiny_dataset, tmp_path, capsys):
-    out = tmp_path / "vq.pt"
+    out = tmp_path / "vq.npz"
     assert cli.main(["train", "vqvae", "--data", str(tiny_dataset), "--out", str(out),
                      "--steps", "2", "--batch", "2", "--quiet"]) == 0
     assert "held-out road IoU" in capsys.readouterr().out

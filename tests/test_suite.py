@@ -82,18 +82,3 @@ def test_check_suite_names_the_scenario_file_and_figure_that_drifted(suite, tmp_
     assert err.startswith("roadweaver-sumo: error:") and err.count("\n") == 1
 
 
-def test_pool_workers_let_idle_openmp_threads_sleep(monkeypatch):
-    """Scenario workers run with OMP_WAIT_POLICY=PASSIVE unless the user set it: torch's
-    spinning threads in one worker starve the others (a learned suite took twice as long)."""
-    import os
-
-    from roadweaver_sumo.suite.engines import run_jobs
-
-    monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
-    seen = []
-    run_jobs(os.getenv, ["OMP_WAIT_POLICY"] * 2, seen.append, workers=2)
-    assert seen == ["PASSIVE", "PASSIVE"]
-    monkeypatch.setenv("OMP_WAIT_POLICY", "ACTIVE")
-    seen.clear()
-    run_jobs(os.getenv, ["OMP_WAIT_POLICY"], seen.append, workers=1)
-    assert seen == ["ACTIVE"]

@@ -6,7 +6,8 @@ than only the input. Training masks a cosine-scheduled share of positions; sampl
 an all-masked grid (or one with some positions fixed, for in-painting) and, over a few steps,
 keeps the most confident predictions (Chang et al. 2022). With ``guidance`` > 0 the logits are
 pushed away from the unconditional prediction (classifier-free guidance), which sharpens what
-the condition asks for.
+the condition asks for. This module trains; maps are sampled by the same arithmetic in numpy
+(``inference.MaskGITSampler``), which needs no torch.
 
 The ``groups`` tokens of one position are strongly dependent (given the first, the second has
 3.6 nats of entropy instead of 6.0 on the training tiles), so they are predicted as a chain,
@@ -20,7 +21,6 @@ from __future__ import annotations
 import math
 
 import torch
-import torch.nn.functional as F
 from torch import nn
 
 from .settings import MASKGIT_CONFIG, MaskGITConfig
@@ -108,74 +108,3 @@ class MaskGIT(nn.Module):
             x = block(x, c)
         scale, shift = self.final_mod(c).unsqueeze(1).chunk(2, dim=-1)
         return self.final_norm(x) * (1 + scale) + shift
-
-    @torch.no_grad()
-    def sample(self, cond: torch.Tensor, generator: torch.Generator, *, steps: int = 8,
-               known: torch.Tensor | None = None, known_mask: torch.Tensor | None = None,
-               temperature: float = 1.0, guidance: float = 1.0) -> torch.Tensor:
-        """Iterative confidence-based decoding. ``cond`` (B, 11) standardised. ``known`` (B, n, G)
-        tokens fixed where ``known_mask`` (B, n) is True (in-painting context). Returns (B, n, G).
-
-        At step t the share cos(π t / 2T) of the still-unknown positions stays masked; the
-        positions whose sampled tokens have the highest log-probability (plus annealed Gumbel
-        noise, as in MaskGIT) are kept.
-        """
-        B = cond.shape[0]
-        n, G = self.cfg.grid ** 2, self.cfg.groups
-        tokens = torch.zeros(B, n, G, dtype=torch.long)
-        fixed = torch.zeros(B, n, dtype=torch.bool)
-        if known is not None:
-            tokens = torch.where(known_mask[..., None], known, tokens)
-            fixed = known_mask.clone()
-        unknown0 = (~fixed).sum(dim=1)  # positions to generate, per row
-        masked = ~fixed
-        drop_all = torch.ones(B, dtype=torch.bool)
-        for t in range(steps):
-            if guidance > 0:  # conditional and unconditional rows in one batch
-                h = self.trunk(tokens.repeat(2, 1, 1), masked.repeat(2, 1), cond.repeat(2, 1),
-                               torch.cat([~drop_all, drop_all]))
-                h_cond, h_free = h[:B][masked], h[B:][masked]
-            else:
-                h_cond, h_free = self.trunk(tokens, masked, cond)[masked], None
-            choice, logp = self._sample_masked(h_cond, h_free, generator, guidance, temperature)
-            conf = torch.zeros(B, n)
-            conf[masked] = logp
-            ratio = math.cos(0.5 * math.pi * (t + 1) / steps)
-            keep_masked = torch.floor(unknown0.float() * ratio).long()  # per row
-            anneal = 1.0 - (t + 1) / steps
-            noise = -torch.log(-torch.log(torch.rand(B, n, generator=generator).clamp_(1e-9, 1 - 1e-9)))
-            score = torch.where(masked, conf + 2.0 * anneal * noise, torch.full_like(conf, math.inf))
-            order = score.argsort(dim=1)  # lowest first
-            rank = order.argsort(dim=1)
-            still = rank < keep_masked[:, None]
-            newly = masked & ~still
-            sampled = tokens.clone()
-            sampled[masked] = choice
-            tokens = torch.where(newly[..., None], sampled, tokens)
-            masked = still & masked
-        return tokens
-
-    def _sample_masked(self, h_cond: torch.Tensor, h_free: torch.Tensor | None,
-                       generator: torch.Generator, guidance: float, temperature: float):
-        """Tokens (m, G) for the m masked positions with trunk features ``h_cond`` (and
-        ``h_free`` without the condition, for guidance), and their summed log-probability (m,).
-
-        Only masked positions are drawn: the others are context and keep their tokens, and in
-        an in-painting window they are most of it. Each group is one categorical draw (inverse
-        CDF of one uniform number), the same distribution as Gumbel-max at a 512th of the
-        random numbers."""
-        m, G = h_cond.shape[0], self.cfg.groups
-        choice = torch.zeros(m, G, dtype=torch.long)
-        conf = torch.zeros(m)
-        for gi in range(G):  # the chain: group gi given the groups sampled before it
-            logits = self.group_logits(h_cond, gi, choice[:, :gi])
-            if h_free is not None:
-                free = self.group_logits(h_free, gi, choice[:, :gi])
-                logits = logits + guidance * (logits - free)
-            logp = F.log_softmax(logits / max(temperature, 1e-4), dim=-1)
-            cdf = logp.exp().cumsum(dim=-1)
-            u = torch.rand(m, 1, generator=generator) * cdf[:, -1:]
-            drawn = torch.searchsorted(cdf, u, right=True).clamp_(max=logp.shape[-1] - 1)
-            choice[:, gi] = drawn[:, 0]
-            conf += logp.gather(-1, drawn)[:, 0]
-        return choice, conf

@@ -10,19 +10,18 @@ goes through the convolutional decoder in one pass, so the decoded field has no 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
-import torch
+from threadpoolctl import threadpool_limits
 
-from .checkpoint import load_maskgit, load_vqvae
-from .maskgit import MaskGIT
-from .vqvae import VQVAE
+from .checkpoint import SHIPPED_MASKGIT, SHIPPED_VQVAE, read_checkpoint
+from .inference import FieldDecoder, MaskGITSampler, TorchUniform
+from .settings import MaskGITConfig, VQVAEConfig
 
-#: torch's results may depend on its thread count; sampling always uses the same one so that a
-#: seed gives the same map on every machine.
-SAMPLING_THREADS = 2
 STEPS = 8
 GUIDANCE = 1.0
 #: Logit temperature. At 1.0, confidence-based decoding committed the confident "no road"
@@ -37,10 +36,11 @@ DECODE_BLOCK, DECODE_MARGIN = 160, 8
 
 @dataclass
 class Generator:
-    """The trained pair plus what sampling needs from the transformer's training record."""
+    """The trained pair (numpy forward passes) plus what sampling needs from the transformer's
+    training record."""
 
-    vqvae: VQVAE
-    maskgit: MaskGIT
+    decoder: FieldDecoder
+    sampler: MaskGITSampler
     cond_mean: np.ndarray
     cond_std: np.ndarray
     tile_m: float  # metres covered by one window at scale 1 (the training tile)
@@ -48,31 +48,32 @@ class Generator:
     road_threshold: float = 0.5  # road pixels of decoded fields (calibrated in training)
 
     @classmethod
-    def load(cls, vqvae_path=None, maskgit_path=None) -> Generator:
-        vq, vq_meta = load_vqvae(vqvae_path) if vqvae_path else load_vqvae()
-        mg, meta = load_maskgit(maskgit_path) if maskgit_path else load_maskgit()
-        return cls(vq, mg, np.array(meta["condition_mean"], dtype=np.float32),
+    def load(cls, vqvae_path=SHIPPED_VQVAE, maskgit_path=SHIPPED_MASKGIT) -> Generator:
+        vq_state, vq_meta = read_checkpoint(vqvae_path, "vqvae")
+        mg_state, meta = read_checkpoint(maskgit_path, "maskgit")
+        return cls(FieldDecoder(vq_state, VQVAEConfig(**vq_meta["config"])),
+                   MaskGITSampler(mg_state, MaskGITConfig(**meta["config"])),
+                   np.array(meta["condition_mean"], dtype=np.float32),
                    np.array(meta["condition_std"], dtype=np.float32),
                    float(meta["dataset"]["settings"]["tile_m"]), meta,
                    float(vq_meta["heldout"].get("threshold", 0.5)))
 
     @property
     def grid(self) -> int:
-        return self.maskgit.cfg.grid
+        return self.sampler.cfg.grid
 
-    def standardise(self, c: np.ndarray) -> torch.Tensor:
-        return torch.from_numpy(((np.asarray(c, np.float32) - self.cond_mean) / self.cond_std)
-                                .astype(np.float32))[None]
+    def standardise(self, c: np.ndarray) -> np.ndarray:
+        return ((np.asarray(c, np.float32) - self.cond_mean) / self.cond_std).astype(np.float32)
 
 
 @contextmanager
-def fixed_threads(n: int = SAMPLING_THREADS):
-    old = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(old)
+def two_threads() -> Iterator[ThreadPoolExecutor]:
+    """Two threads for the transformer's two rows (with and without the condition), each
+    multiplying its matrices on one core: twice as fast as both rows in one batch on two BLAS
+    threads, whose start-up costs more than these small products. A row is computed the same
+    way on any number of threads, so the tokens do not depend on them."""
+    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(2) as pool:
+        yield pool
 
 
 def window_starts(length: int, window: int) -> list[int]:
@@ -88,30 +89,41 @@ def window_starts(length: int, window: int) -> list[int]:
 
 def sample_tokens(gen: Generator, c: np.ndarray, shape: tuple[int, int], seed: int, *,
                   steps: int = STEPS, guidance: float = GUIDANCE,
-                  temperature: float = TEMPERATURE, progress=None) -> torch.Tensor:
+                  temperature: float = TEMPERATURE, progress=None) -> np.ndarray:
     """A token canvas (ny, nx, G) of at least one window, filled window by window."""
-    g, G = gen.grid, gen.maskgit.cfg.groups
+    g, G = gen.grid, gen.sampler.cfg.groups
     ny, nx = max(shape[0], g), max(shape[1], g)
-    canvas = torch.zeros(ny, nx, G, dtype=torch.long)
-    done = torch.zeros(ny, nx, dtype=torch.bool)
-    cond = gen.standardise(c)
-    rng = torch.Generator().manual_seed(int(seed))
+    canvas = np.zeros((ny, nx, G), dtype=np.int64)
+    done = np.zeros((ny, nx), dtype=bool)
+    modulations = gen.sampler.condition(gen.standardise(c), guidance)
+    rng = TorchUniform(seed)
     windows = [(y, x) for y in window_starts(ny, g) for x in window_starts(nx, g)]
-    for k, (y, x) in enumerate(windows):
-        known = canvas[y:y + g, x:x + g].reshape(1, g * g, G)
-        known_mask = done[y:y + g, x:x + g].reshape(1, g * g)
-        if known_mask.all():
-            continue
-        # a window that is mostly context needs fewer decoding steps for its few new tokens
-        share = 1.0 - known_mask.float().mean().item()
-        out = gen.maskgit.sample(cond, rng, steps=max(2, math.ceil(steps * share)), known=known,
-                                 known_mask=known_mask, guidance=guidance,
-                                 temperature=temperature)
-        canvas[y:y + g, x:x + g] = out.reshape(g, g, G)
-        done[y:y + g, x:x + g] = True
-        if progress:
-            progress(k + 1, len(windows))
+    with two_threads() as pool:
+        for k, (y, x) in enumerate(windows):
+            _sample_window(gen, canvas, done, (y, x), modulations, rng, pool.map, steps=steps,
+                           guidance=guidance, temperature=temperature)
+            if progress:
+                progress(k + 1, len(windows))
     return canvas
+
+
+def _sample_window(gen: Generator, canvas: np.ndarray, done: np.ndarray, origin, modulations,
+                   rng: TorchUniform, map_rows, *, steps: int, guidance: float,
+                   temperature: float) -> None:
+    """Fill the window at ``origin`` of the canvas, the tokens already there kept as context."""
+    g, G = gen.grid, gen.sampler.cfg.groups
+    y, x = origin
+    known = canvas[y:y + g, x:x + g].reshape(g * g, G)
+    known_mask = done[y:y + g, x:x + g].reshape(g * g)
+    if known_mask.all():
+        return
+    # a window that is mostly context needs fewer decoding steps for its few new tokens
+    share = 1.0 - known_mask.mean()
+    out = gen.sampler.sample(modulations, rng, steps=max(2, math.ceil(steps * share)),
+                             known=known, known_mask=known_mask, guidance=guidance,
+                             temperature=temperature, map_rows=map_rows)
+    canvas[y:y + g, x:x + g] = out.reshape(g, g, G)
+    done[y:y + g, x:x + g] = True
 
 
 def sample_field(gen: Generator, c: np.ndarray, width_m: float, height_m: float, seed: int, *,
@@ -121,13 +133,11 @@ def sample_field(gen: Generator, c: np.ndarray, width_m: float, height_m: float,
     extent (sparser networks than the data have look like scaled-up denser ones)."""
     token_m = gen.tile_m * scale / gen.grid
     shape = (math.ceil(height_m / token_m), math.ceil(width_m / token_m))
-    with fixed_threads(), torch.no_grad():
-        tokens = sample_tokens(gen, c, shape, seed, **options)
-        field = decode_canvas(gen.vqvae, tokens)
-    return field, token_m / 8
+    tokens = sample_tokens(gen, c, shape, seed, **options)
+    return decode_canvas(gen.decoder, tokens), token_m / 8
 
 
-def decode_canvas(vqvae: VQVAE, tokens: torch.Tensor, block: int = DECODE_BLOCK,
+def decode_canvas(decoder: FieldDecoder, tokens: np.ndarray, block: int = DECODE_BLOCK,
                   margin: int = DECODE_MARGIN) -> np.ndarray:
     """Decode a token canvas (ny, nx, G) into F (8 ny, 8 nx, 6) in blocks of ``block`` tokens,
     each decoded with ``margin`` tokens of context on every side and only its centre kept, so
@@ -138,7 +148,7 @@ def decode_canvas(vqvae: VQVAE, tokens: torch.Tensor, block: int = DECODE_BLOCK,
         for x0 in range(0, nx, block):
             ya, xa = max(y0 - margin, 0), max(x0 - margin, 0)
             yb, xb = min(y0 + block + margin, ny), min(x0 + block + margin, nx)
-            part = vqvae.decode(tokens[None, ya:yb, xa:xb])[0].permute(1, 2, 0).numpy()
+            part = decoder.decode(tokens[ya:yb, xa:xb])
             h, w = min(block, ny - y0), min(block, nx - x0)
             oy, ox = 8 * (y0 - ya), 8 * (x0 - xa)
             out[8 * y0:8 * (y0 + h), 8 * x0:8 * (x0 + w)] = part[oy:oy + 8 * h, ox:ox + 8 * w]

@@ -80,21 +80,11 @@ def run_jobs(
         _run_local(fn, jobs, on_result, check_workers(workers))
 
 
-def quiet_openmp() -> None:
-    """Idle OpenMP threads sleep instead of spinning (unless the user chose otherwise). torch's
-    threads spin for work after each sampling step, burning the cores the other workers need:
-    a 4-scenario learned suite with 2 workers on 2 cores took 28-29 s spinning and 12-16 s
-    passive, with the same bytes. A lone run keeps the default (passive sampling is ~20 %
-    slower there). Must run before the process imports torch."""
-    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-
-
 def _run_local(fn: Callable, jobs: Sequence, on_result: Callable, workers: int) -> None:
     """A process pool; 'spawn' so workers start clean whatever threads the caller runs (a forked
     copy of a process with threads can deadlock)."""
     context = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=min(workers, max(len(jobs), 1)), mp_context=context,
-                               initializer=quiet_openmp)
+    pool = ProcessPoolExecutor(max_workers=min(workers, max(len(jobs), 1)), mp_context=context)
     try:
         pending = {pool.submit(fn, job) for job in jobs}
         while pending:

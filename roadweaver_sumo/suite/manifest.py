@@ -38,7 +38,7 @@ FIGURES = tuple(t.figure for t in THRESHOLDS) + (
 # Packages whose versions change the bytes of a scenario: a hash drift on a machine with other
 # versions is then explained rather than a mystery.
 VERSIONED = ("eclipse-sumo", "numpy", "numba", "scipy", "shapely", "networkx", "scikit-image",
-             "matplotlib", "torch")
+             "matplotlib")
 
 
 def file_hashes(folder: Path) -> dict[str, str]:
