@@ -208,14 +208,18 @@ def test_parallel_and_sequential_writes_are_identical(tmp_path):
 
 
 @pytest.mark.skipif(not map_files._can_fork(), reason="writers only fork where fork exists")
-def test_error_in_a_forked_writer_is_raised_here(tmp_path, monkeypatch):
+@pytest.mark.parametrize("writer, finished", [("write_lanelet2", "plain/map.con.xml"),
+                                               ("write_opendrive", "map.osm")])
+def test_an_error_in_either_process_is_raised_here(tmp_path, monkeypatch, writer, finished):
+    """lanelet2 is written here, OpenDRIVE by the forked child: either failure is raised, after
+    the other process has finished its files."""
     def broken(hd, path):
         raise OSError(28, "No space left on device", str(path))
 
-    monkeypatch.setattr(map_files, "write_lanelet2", broken)
+    monkeypatch.setattr(map_files, writer, broken)
     with pytest.raises(OSError, match="No space left on device"):
         map_files.write_map_files(build_hdmap(town(), GEO_ORIGIN), tmp_path)
-    assert (tmp_path / "plain/map.con.xml").is_file()  # the other writers still finished
+    assert (tmp_path / finished).is_file()
 
 
 def test_shapes_write_every_number_as_single_numbers_are_written():
