@@ -225,7 +225,8 @@ def test_node_lines_are_written_as_python_formats_them():
     lat = np.concatenate([rng.uniform(-90, 90, 5000), rng.uniform(47, 49, 5000), ties, edge])
     lon = np.concatenate([rng.uniform(-180, 180, len(lat) - len(edge)), edge[::-1]])
     ids = rng.integers(1, 10**12, len(lat))
-    written = ll2._node_lines(ids, *ll2._fixed_point(lat), *ll2._fixed_point(lon))
-    expected = "\n".join(ll2._NODE_LINE % node for node in zip(ids.tolist(), lat.tolist(),
-                                                               lon.tolist(), strict=True))
-    assert written.tobytes().decode("ascii") == expected
+    separator = np.frombuffer(b"\n    ", np.uint8).copy()
+    written = ll2._node_lines(ids, *ll2._fixed_point(lat), *ll2._fixed_point(lon), separator)
+    expected = "\n    ".join(ll2._NODE_LINE % node for node in zip(ids.tolist(), lat.tolist(),
+                                                                   lon.tolist(), strict=True))
+    assert str(written.data, "ascii") == expected

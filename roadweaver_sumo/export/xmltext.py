@@ -41,6 +41,14 @@ class Block(str):
     __slots__ = ()
 
 
+class PlacedBlock(str):
+    """A :class:`Block` whose lines after the first already carry the indent of the place it
+    is written to: written as it is, where a Block of a million lines would be re-indented
+    line by line."""
+
+    __slots__ = ()
+
+
 def escape(value: str) -> str:
     """An attribute value escaped as lxml escapes it."""
     return value.translate(_ESCAPES)
@@ -85,6 +93,8 @@ def _write(elem: Element, pad: str, indent: str, lines: list[str]) -> None:
                 lines.append(inner + child)
             elif type(child) is Block:
                 lines.append(inner + child.replace("\n", "\n" + inner))
+            elif type(child) is PlacedBlock:
+                lines.append(inner + child)
             elif child.children:
                 _write(child, inner, indent, lines)
             elif child.text is None:
