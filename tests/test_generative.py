@@ -290,3 +290,16 @@ def test_train_cli_writes_a_checkpoint(tiny_dataset, tmp_path, capsys):
     assert "held-out road IoU" in capsys.readouterr().out
     assert load_vqvae(out)[1]["settings"]["steps"] == 2
 
+
+
+def test_train_without_torch_says_how_to_get_it(tmp_path, capsys, monkeypatch):
+    """Sampling needs no torch, training does: without it, one line naming the extra."""
+    import importlib.util
+
+    find_spec = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "torch" else find_spec(name, *a))
+    assert cli.main(["train", "vqvae", "--data", str(tmp_path), "--out",
+                     str(tmp_path / "m.npz")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "training needs torch" in err and "[train]" in err
