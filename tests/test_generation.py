@@ -404,3 +404,40 @@ def test_cycle_collector_is_paused_only_while_a_map_is_generated():
         assert not gc.isenabled()  # a caller's own choice is left alone
     finally:
         gc.enable()
+
+
+def test_fill_node_ids_are_the_next_ids():
+    """The fill's new node ids are what ``max(G.nodes) + 1`` gives, also after nodes someone
+    else added with the next id, so every map keeps its node numbering."""
+    from roadweaver_sumo.expand.edge_index import EdgeIndex
+    from roadweaver_sumo.roadgraph import new_road_graph
+
+    G = new_road_graph(100, 100)
+    for n in (0, 3, 7):
+        G.add_node(n, xy=(float(n), 0.0))
+    index = EdgeIndex(G)
+    for _ in range(3):
+        expected = max(G.nodes) + 1
+        assert index.new_node_id() == expected
+        G.add_node(expected, xy=(0.0, 0.0))
+    G.add_node(max(G.nodes) + 1, xy=(1.0, 1.0))  # added elsewhere, the max + 1 way
+    assert index.new_node_id() == max(G.nodes) + 1
+
+
+def test_nodes_near_a_long_ring_are_found_as_by_measuring_every_one():
+    """A long block boundary with many nodes takes the segment-tree path; it must pick the
+    same nodes as measuring each node's distance to the ring, also those near the tolerance."""
+    from roadweaver_sumo.expand.fill import RING_PAIRS_DIRECT, _near_ring
+
+    angle = np.linspace(0.0, 2 * np.pi, 2001)
+    ring = shapely.LinearRing(np.column_stack([1000 * np.cos(angle), 700 * np.sin(angle)]))
+    coords = shapely.get_coordinates(ring)
+    rng = np.random.default_rng(0)
+    on_ring = coords[rng.integers(0, len(coords) - 1, 300)]
+    offsets = rng.choice([0.0, 0.005, 0.0099, 0.0101, 0.02, 5.0], (300, 1))
+    pts = np.vstack([on_ring + offsets * rng.normal(size=(300, 2)) / np.sqrt(2),
+                     rng.uniform(-1000, 1000, (300, 2))])
+    assert len(pts) * len(coords) > RING_PAIRS_DIRECT
+    direct = shapely.distance(ring, shapely.points(pts)) <= 0.01
+    assert 0 < direct.sum() < len(pts)
+    assert np.array_equal(_near_ring(ring, pts, 0.01), direct)

@@ -25,6 +25,16 @@ class EdgeIndex:
         self.lines: dict[tuple, LineString] = {}
         for u, v in G.edges:
             self.add(u, v)
+        self._top = max(G.nodes, default=-1)
+
+    def new_node_id(self) -> int:
+        """``max(G.nodes) + 1`` without scanning every node (a scan per split made the density
+        fill quadratic: 1.1 s of a 20 km map). Exact while nodes are only added with the next
+        id, as the fill does, and none removed."""
+        while self._top + 1 in self.G:
+            self._top += 1
+        self._top += 1
+        return self._top
 
     def _cells(self, bounds, pad: float = 0.0):
         x0, y0, x1, y1 = bounds

@@ -141,9 +141,8 @@ class _NodePoints:
         pts = np.vstack([self.tree.data[sorted(near)], self.added])
         if len(pts) == 0:
             return []
-        ring = face.exterior
-        close = shapely.distance(ring, shapely.points(pts)) <= tolerance
-        found = {self.by_xy[(float(x), float(y))] for x, y in pts[close]}
+        found = {self.by_xy[(float(x), float(y))] for x, y in pts[_near_ring(face.exterior, pts,
+                                                                               tolerance)]}
         return sorted((n, np.asarray(self.G.nodes[n]["xy"], float)) for n in found)
 
     def any_within(self, p: np.ndarray, radius: float) -> bool:
@@ -152,6 +151,28 @@ class _NodePoints:
         near = self.tree.query_ball_point(p, radius + 1e-6)
         pts = np.vstack([self.tree.data[near], self.added])
         return len(pts) > 0 and bool(np.min(np.hypot(*(pts - p).T)) < radius)
+
+
+#: Above this many point-vertex pairs, points far from the ring are set aside by a segment tree
+#: first: measuring each point against a whole ring costs points x vertices, and the first
+#: blocks of a 20 km map have thousands of each (3.2 s of its density fill).
+RING_PAIRS_DIRECT = 20_000
+
+
+def _near_ring(ring, pts: np.ndarray, tolerance: float) -> np.ndarray:
+    """Which of ``pts`` lie within ``tolerance`` of ``ring``, as ``shapely.distance`` says:
+    where a segment tree is used, it only picks the candidates (with twice the tolerance as a
+    margin), and their distance to the ring is then measured exactly as without it."""
+    points = shapely.points(pts)
+    coords = shapely.get_coordinates(ring)
+    if len(pts) * len(coords) <= RING_PAIRS_DIRECT:
+        return shapely.distance(ring, points) <= tolerance
+    segments = shapely.linestrings(np.stack([coords[:-1], coords[1:]], axis=1))
+    near = np.unique(shapely.STRtree(segments).query(points, predicate="dwithin",
+                                                      distance=2 * tolerance)[0])
+    close = np.zeros(len(pts), dtype=bool)
+    close[near] = shapely.distance(ring, points[near]) <= tolerance
+    return close
 
 
 def _extended(chord: np.ndarray, by: float) -> LineString:
@@ -412,7 +433,7 @@ def insert_chord(
         # Both ends landed on one road, next to each other: a shape node in the middle of the
         # chord keeps the graph simple (no two roads between the same pair of nodes).
         k = len(chord) // 2
-        m = max(G.nodes) + 1
+        m = index.new_node_id()
         G.add_node(m, xy=(float(chord[k][0]), float(chord[k][1])))
         for a, b, part in ((u, m, chord[: k + 1]), (m, v, chord[k:])):
             add_road(G, a, b, part, "local")
@@ -436,7 +457,7 @@ def split_edge_at(G: nx.Graph, edge, point, tolerance: float, index: EdgeIndex):
     cls = G.edges[u, v]["road_class"]
     first = shapely.ops.substring(line, 0, s)
     second = shapely.ops.substring(line, s, line.length)
-    node = max(G.nodes) + 1
+    node = index.new_node_id()
     G.add_node(node, xy=tuple(np.asarray(second.coords[0])))
     index.remove(u, v)
     G.remove_edge(u, v)
