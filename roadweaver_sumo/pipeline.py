@@ -7,7 +7,6 @@ like a finished scenario, and an existing folder is replaced only with ``force``
 
 from __future__ import annotations
 
-import gc
 import json
 import time
 from collections.abc import Callable, Iterator
@@ -18,9 +17,10 @@ from pathlib import Path
 from .expand import expand_skeleton
 from .export.map_files import write_map_files
 from .export.netconvert import run_netconvert
+from .gc_pause import cyclic_gc_paused
 from .hdmap import build_hdmap, hdmap_metrics
 from .metrics import graph_metrics
-from .render import render_preview
+from .render import net_drawing, render_preview
 from .scenario.demand import write_demand
 from .scenario.sumocfg import write_sumocfg
 from .skeleton import make_skeleton
@@ -58,11 +58,12 @@ def make_scenario(
     stages: dict[str, float] = {}
     with staged_folder(out_dir, force) as tmp:
         generation = build_scenario_files(spec, tmp, stages, log)
-        report = None
+        report, drawing = None, {}
         if validate:
             log("validating: libsumo run and routing tasks")
             start = time.perf_counter()
-            report, sim_timing = validate_scenario(tmp)
+            report, sim_timing = validate_scenario(
+                tmp, alongside=lambda net: drawing.update(net=net_drawing(net)))
             stages["validate"] = time.perf_counter() - start
             report["generation"] = generation
             write_report(tmp, report)
@@ -71,7 +72,8 @@ def make_scenario(
             write_report(tmp, {"generation": generation, "validated": False})
             timing = {"stages_s": stages}
         start = time.perf_counter()
-        render_preview(tmp)  # after the report: the picture shows the validation's edge flows
+        # after the report: the picture shows the validation's edge flows
+        render_preview(tmp, net=drawing.get("net"))
         stages["preview"] = time.perf_counter() - start
         (tmp / TIMING_FILE).write_text(_json(_rounded_timing(timing)), encoding="utf-8")
     if report is not None:
@@ -110,22 +112,6 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
         "road_graph": graph_metrics(graph, spec.area_km2),
         "hdmap": hdmap_metrics(hdmap),
     }
-
-
-@contextmanager
-def cyclic_gc_paused() -> Iterator[None]:
-    """Python's cycle collector off while the map is generated. Generation allocates millions
-    of small objects that live to the end (graph attributes, polylines, lanes), and the
-    collector, triggered by allocation counts, walks all of them again and again: about 10 %
-    of a 10 km map's time. The stages make almost no reference cycles (peak memory of a 10 km
-    map +1.4 %), and reference counting frees everything else as before."""
-    was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if was_enabled:
-            gc.enable()
 
 
 def _rounded_timing(obj):

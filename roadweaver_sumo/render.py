@@ -25,6 +25,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from .errors import RoadweaverError
+from .gc_pause import cyclic_gc_paused
 
 PREVIEW_FILE = "preview.png"
 NET_FILE = "map.net.xml"
@@ -42,15 +43,17 @@ FLOW_CMAP_RANGE = (0.12, 0.95)  # skip the near-white and near-black ends of the
 PNG_METADATA = {"Software": None}  # no matplotlib version in the file: bytes depend on pixels only
 
 
-def render_preview(folder: Path, out: Path | None = None) -> Path:
-    """Draw the scenario in ``folder`` into ``out`` (default ``folder/preview.png``)."""
+def render_preview(folder: Path, out: Path | None = None, net: dict | None = None) -> Path:
+    """Draw the scenario in ``folder`` into ``out`` (default ``folder/preview.png``). ``net`` is
+    :func:`net_drawing` of the folder's net when the caller has read it already (validation
+    does, while its simulation runs); otherwise the net is read here."""
     folder = Path(folder)
     net_path = folder / NET_FILE
     if not net_path.is_file():
         raise RoadweaverError(f"{folder} is not a scenario folder (no {NET_FILE})")
     spec = _read_json(folder / "spec.json")
     report = _read_json(folder / "report.json")
-    net = _read_net(net_path)
+    net = net if net is not None else _read_net(net_path)
 
     xmin, ymin, xmax, ymax = net["bounds"]
     pad = 0.02 * max(xmax - xmin, ymax - ymin, 1.0)  # the perimeter road sits on the bounds
@@ -216,23 +219,31 @@ def _duration(seconds) -> str:
 
 
 def _read_net(path: Path) -> dict:
-    """Lane polylines and widths (with their edge ids), junction polygons and node positions
-    by junction type, and the net's bounds, in the net's own metric frame."""
+    """:func:`net_drawing` of the net at ``path``, read without internal lanes."""
     import sumolib
 
     try:
-        net = sumolib.net.readNet(str(path), withInternal=False)
+        with cyclic_gc_paused():
+            net = sumolib.net.readNet(str(path), withInternal=False)
     except Exception as exc:  # noqa: BLE001 - sumolib raises bare SAX errors on a damaged net
         raise RoadweaverError(f"cannot read {path}: {exc}") from None
+    return net_drawing(net)
+
+
+def net_drawing(net) -> dict:
+    """What the preview draws of a sumolib net (read with or without internal lanes): lane
+    polylines and widths (with their edge ids), junction polygons and node positions by
+    junction type, and the net's bounds, in the net's own metric frame."""
     lanes, widths, lane_edges, lane_ids = [], [], [], {}
-    for edge in sorted(net.getEdges(), key=lambda e: e.getID()):
+    for edge in sorted(net.getEdges(withInternal=False), key=lambda e: e.getID()):
         for lane in edge.getLanes():
             lane_ids[lane.getID()] = len(lanes)
             lanes.append(np.asarray(lane.getShape(), dtype=float)[:, :2])
             widths.append(lane.getWidth())
             lane_edges.append(edge.getID())
     junctions, nodes, node_xy = [], {}, {}
-    for node in sorted(net.getNodes(), key=lambda n: n.getID()):
+    road_nodes = (n for n in net.getNodes() if n.getType() != "internal")
+    for node in sorted(road_nodes, key=lambda n: n.getID()):
         node_xy[node.getID()] = node.getCoord()[:2]
         shape = node.getShape()
         if len(shape) >= 3:

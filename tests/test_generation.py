@@ -10,8 +10,8 @@ from shapely.geometry import LineString
 
 from roadweaver_sumo.expand import MIN_ANGLE, MIN_EDGE, expand_skeleton
 from roadweaver_sumo.expand.planar import _point_along, build_planar_graph, departure_angles
+from roadweaver_sumo.gc_pause import cyclic_gc_paused
 from roadweaver_sumo.metrics import graph_metrics, road_node_count
-from roadweaver_sumo.pipeline import cyclic_gc_paused
 from roadweaver_sumo.roadgraph import edge_length
 from roadweaver_sumo.skeleton import make_skeleton
 from roadweaver_sumo.spec import ScenarioSpec

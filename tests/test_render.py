@@ -9,7 +9,8 @@ import numpy as np
 from matplotlib.image import imread
 
 from roadweaver_sumo.cli import main
-from roadweaver_sumo.render import COLLISION_COLOUR, render_preview
+from roadweaver_sumo.render import COLLISION_COLOUR, net_drawing, render_preview
+from roadweaver_sumo.validate.netgraph import load_net
 
 SUITE = Path(__file__).resolve().parents[1] / "scenarios" / "examples" / "suite"
 SCENARIO = SUITE / "grid-d20-1000x1000-s0-v50"
@@ -30,6 +31,14 @@ def test_preview_is_redrawn_byte_for_byte(tmp_path, capsys):
     assert main(["render", str(copy)]) == 0
     assert capsys.readouterr().out.strip() == f"wrote {copy / 'preview.png'}"
     assert (copy / "preview.png").read_bytes() == (SCENARIO / "preview.png").read_bytes()
+
+
+def test_preview_drawn_from_the_validation_net_is_the_same(tmp_path):
+    """make-scenario draws from the net validation read (with internal lanes) instead of
+    reading it again: the picture must not change."""
+    drawing = net_drawing(load_net(SCENARIO / "map.net.xml"))
+    out = render_preview(SCENARIO, tmp_path / "p.png", net=drawing)
+    assert out.read_bytes() == (SCENARIO / "preview.png").read_bytes()
 
 
 def test_preview_has_no_date_or_software_metadata():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import networkx as nx
@@ -20,7 +21,7 @@ from roadweaver_sumo.validate.report import (
     validate_scenario,
     write_report,
 )
-from roadweaver_sumo.validate.simulation import run_simulation
+from roadweaver_sumo.validate.simulation import run_simulation, started_simulation
 
 GRID = 3  # junctions per side: 9 junctions, 24 one-lane edges, 150 m blocks (300 x 300 m)
 
@@ -143,3 +144,32 @@ def test_report_without_validation_figures_fails_with_one_line(tmp_path):
     report = json.loads(write_report(tmp_path, {"validated": False}).read_text())
     assert report["passed"] is False and report["schema_version"] == 1
     assert report["failures"] == ["not validated: the report has no net or simulation figures"]
+
+
+def test_validation_hands_its_net_to_alongside_work_and_reports_the_same(healthy):
+    seen = []
+    report, _ = validate_scenario(healthy, alongside=seen.append)
+    plain, _ = validate_scenario(healthy)
+    assert report == plain
+    assert len(seen) == 1 and len(seen[0].getEdges(withInternal=False)) == 24
+
+
+def _children() -> list[int]:
+    me, out = os.getpid(), []
+    for entry in os.listdir("/proc"):
+        try:
+            stat = Path(f"/proc/{entry}/stat").read_text()
+        except OSError:
+            continue
+        if entry.isdigit() and int(stat.rsplit(")", 1)[1].split()[1]) == me:
+            out.append(int(entry))
+    return out
+
+
+def test_simulation_children_are_killed_when_the_caller_fails(healthy):
+    before = set(_children())
+    with pytest.raises(RuntimeError, match="measuring failed"), \
+            started_simulation(healthy, wall_cap_s=60.0):
+        assert len(set(_children()) - before) == 2  # the simulation and the routing child
+        raise RuntimeError("measuring failed")
+    assert set(_children()) - before == set()

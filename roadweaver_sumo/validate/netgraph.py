@@ -19,6 +19,7 @@ import numpy as np
 import sumolib
 
 from ..errors import RoadweaverError
+from ..gc_pause import cyclic_gc_paused
 from ..roadgraph import new_road_graph
 
 VEHICLE_CLASS = "passenger"
@@ -26,12 +27,18 @@ VEHICLE_CLASS = "passenger"
 
 def load_net(net_path: Path) -> sumolib.net.Net:
     """The net with internal lanes and connections; a one-line error if it cannot be read."""
-    if not Path(net_path).exists():
-        raise RoadweaverError(f"network {net_path} not found")
+    require_net(net_path)
     try:
-        return sumolib.net.readNet(str(net_path), withInternal=True)
+        with cyclic_gc_paused():
+            return sumolib.net.readNet(str(net_path), withInternal=True)
     except Exception as exc:  # sumolib raises whatever its SAX handler hits
         raise RoadweaverError(f"cannot read SUMO network {net_path}: {exc}") from exc
+
+
+def require_net(net_path: Path) -> None:
+    """A one-line error if there is no net at ``net_path``."""
+    if not Path(net_path).exists():
+        raise RoadweaverError(f"network {net_path} not found")
 
 
 def road_junctions(net: sumolib.net.Net) -> list:

@@ -10,15 +10,18 @@ from __future__ import annotations
 import json
 import operator
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
+import sumolib
 
 from ..errors import RoadweaverError
 from ..scenario.sumocfg import NET_FILE, end_time
-from .net_metrics import net_metrics
-from .simulation import run_simulation
+from .net_metrics import loaded_net_metrics
+from .netgraph import load_net, require_net
+from .simulation import started_simulation
 
 SCHEMA_VERSION = 1
 REPORT_FILE = "report.json"
@@ -51,20 +54,33 @@ THRESHOLDS: tuple[Threshold, ...] = (
 _OPS = {">=": operator.ge, "<=": operator.le, "==": operator.eq}
 
 
-def validate_scenario(out_dir: Path) -> tuple[dict, dict]:
+def validate_scenario(
+    out_dir: Path, alongside: Callable[[sumolib.net.Net], None] | None = None
+) -> tuple[dict, dict]:
     """Measure the scenario in ``out_dir`` (net metrics + simulation + routing) and judge it.
+
+    The simulation runs in its child process while this one reads the net and measures it, so
+    the two use both cores; ``alongside`` is handed the net read here, to do more work with it
+    in that time (the preview takes its drawing from it).
 
     Returns (report, timing); the report carries ``passed`` and ``failures``.
     """
     out_dir = Path(out_dir)
     spec = read_spec(out_dir)
     area_km2 = spec["width"] * spec["height"] / 1e6
+    net_path = out_dir / NET_FILE
+    require_net(net_path)
     t0 = time.perf_counter()
-    net = net_metrics(out_dir / NET_FILE, area_km2)
-    t1 = time.perf_counter()
-    sim, sim_timing = run_simulation(
+    with started_simulation(
         out_dir, wall_cap_s=wall_cap_s(spec["duration"]), seed=spec["seed"]
-    )
+    ) as finish_simulation:
+        loaded = load_net(net_path)
+        net = loaded_net_metrics(loaded, area_km2)
+        t1 = time.perf_counter()
+        if alongside is not None:
+            alongside(loaded)
+        del loaded  # sumolib's net is large: gone before the simulation's results are read
+        sim, sim_timing = finish_simulation()
     vehicles = spec["vehicles"]
     sim["arrived_ratio"] = sim["arrived"] / vehicles
     sim["teleport_ratio"] = sim["teleports_total"] / vehicles

@@ -1,8 +1,8 @@
 """Run a scenario in libsumo and time random routing queries on its net.
 
 libsumo keeps one simulation per process and a second ``start`` silently replaces the first
-(shared NOTES), so every run happens in a fresh ``python -m roadweaver_sumo.validate.simulation``
-child process. A subprocess rather than a multiprocessing pool: a crash inside libsumo then ends
+(shared NOTES), so every run happens in fresh ``python -m roadweaver_sumo.validate.simulation``
+child processes: one simulates, one answers the routing queries. A subprocess rather than a multiprocessing pool: a crash inside libsumo then ends
 the run with an error at once (a pool would silently respawn the worker and wait for its timeout),
 and nothing depends on how the caller's ``__main__`` can be re-imported. SUMO's console chatter,
 the statistic output and the result go to a temporary folder, never into the scenario folder.
@@ -18,6 +18,8 @@ import sys
 import tempfile
 import time
 from collections import Counter
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -29,8 +31,8 @@ from ..sumo_tools import child_env
 
 VEHICLE_TYPE = "DEFAULT_VEHTYPE"  # SUMO's default car (vClass passenger)
 VEHICLE_CLASS = "passenger"
-HARD_TIMEOUT_MARGIN_S = 120.0
-MAX_COLLISION_SITES = 10  # reported in the results, most frequent first  # loading and routing time on top of the cap, before we kill it
+HARD_TIMEOUT_MARGIN_S = 120.0  # loading and routing time on top of the cap, before we kill it
+MAX_COLLISION_SITES = 10  # reported in the results, most frequent first
 
 
 def run_simulation(
@@ -42,88 +44,154 @@ def run_simulation(
     Returns (results, timing): results are deterministic for a given scenario and seed
     (``completed`` is False when ``wall_cap_s`` stopped the run); timing holds wall-clock figures.
     """
+    with started_simulation(out_dir, wall_cap_s=wall_cap_s, routing_tasks=routing_tasks,
+                            seed=seed) as finish:
+        return finish()
+
+
+@contextmanager
+def started_simulation(
+    out_dir: Path, *, wall_cap_s: float, routing_tasks: int = 1000, seed: int = 0
+) -> Iterator[Callable[[], tuple[dict, dict]]]:
+    """:func:`run_simulation` started in child processes, so the caller can work meanwhile
+    (validation measures the net). Yields ``finish``, which waits for the children and returns
+    what :func:`run_simulation` returns; children still running when the block is left (the
+    caller's own work failed) are killed.
+
+    The routing queries run in a second child on the same configuration without its demand,
+    alongside the simulation rather than after it: whether a route exists depends on the net
+    alone, and on a 10 km map the queries take as long as the simulation itself."""
     cfg = Path(out_dir).resolve() / SUMOCFG_FILE
     if not cfg.exists():
         raise RoadweaverError(f"simulation: {cfg} not found")
     started = time.perf_counter()
+    hard_limit = wall_cap_s + HARD_TIMEOUT_MARGIN_S
     with tempfile.TemporaryDirectory(prefix="roadweaver-sim-") as tmp:
-        job = {"cfg": str(cfg), "tmp": tmp, "wall_cap_s": wall_cap_s,
-               "routing_tasks": routing_tasks, "seed": seed}  # fmt: skip
-        log, result = Path(tmp) / "sumo.log", Path(tmp) / "result.json"
-        with log.open("w") as out:
-            try:
-                proc = subprocess.run(
-                    [sys.executable, "-m", __name__, json.dumps(job)],
-                    check=False, stdout=out, stderr=subprocess.STDOUT, env=child_env(),
-                    timeout=wall_cap_s + HARD_TIMEOUT_MARGIN_S,
-                )  # fmt: skip
-            except subprocess.TimeoutExpired:
-                raise RoadweaverError(
-                    f"simulation of {cfg} did not return within {wall_cap_s:.0f} s "
-                    f"+ {HARD_TIMEOUT_MARGIN_S:.0f} s; killed"
-                ) from None
-        if not result.exists():
+        common = {"cfg": str(cfg), "wall_cap_s": wall_cap_s, "routing_tasks": routing_tasks,
+                  "seed": seed}  # fmt: skip
+        children = [_Child(Path(tmp) / kind, {**common, "kind": kind}) for kind in JOBS]
+
+        def finish() -> tuple[dict, dict]:
+            (sim, sim_timing), (routing, routing_timing) = (
+                child.result(cfg, started + hard_limit, wall_cap_s) for child in children)
+            sim.update(routing)
+            timing = {**sim_timing, **routing_timing,
+                      "process_wall_s": time.perf_counter() - started}
+            return sim, timing
+
+        try:
+            yield finish
+        finally:
+            for child in children:
+                child.kill()
+
+
+JOBS = ("simulate", "route")
+
+
+class _Child:
+    """One ``python -m roadweaver_sumo.validate.simulation`` child with its own folder for
+    SUMO's output, its log and its ``result.json``."""
+
+    def __init__(self, folder: Path, job: dict) -> None:
+        folder.mkdir()
+        self.log, self.result_file = folder / "sumo.log", folder / "result.json"
+        with self.log.open("w") as out:
+            self.proc = subprocess.Popen(
+                [sys.executable, "-m", __name__, json.dumps({**job, "tmp": str(folder)})],
+                stdout=out, stderr=subprocess.STDOUT, env=child_env(),
+            )  # fmt: skip
+
+    def result(self, cfg: Path, deadline: float, wall_cap_s: float) -> tuple[dict, dict]:
+        try:
+            self.proc.wait(timeout=max(0.0, deadline - time.perf_counter()))
+        except subprocess.TimeoutExpired:
             raise RoadweaverError(
-                f"simulation of {cfg} crashed (exit code {proc.returncode}): {_last_line(log)}"
+                f"simulation of {cfg} did not return within {wall_cap_s:.0f} s "
+                f"+ {HARD_TIMEOUT_MARGIN_S:.0f} s; killed"
+            ) from None
+        if not self.result_file.exists():
+            raise RoadweaverError(
+                f"simulation of {cfg} crashed (exit code {self.proc.returncode}): "
+                f"{_last_line(self.log)}"
             )
-        payload = json.loads(result.read_text(encoding="utf-8"))
-    if "error" in payload:
-        raise RoadweaverError(payload["error"])
-    payload["timing"]["process_wall_s"] = time.perf_counter() - started
-    return payload["results"], payload["timing"]
+        payload = json.loads(self.result_file.read_text(encoding="utf-8"))
+        if "error" in payload:
+            raise RoadweaverError(payload["error"])
+        return payload["results"], payload["timing"]
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
 
 
 def _main(job: dict) -> None:
     """Child process: run the job, write ``result.json`` (results and timing, or an error)."""
     result = Path(job["tmp"]) / "result.json"
     try:
-        results, timing = _simulate(
-            job["cfg"], job["tmp"], job["wall_cap_s"], job["routing_tasks"], job["seed"]
-        )
+        if job["kind"] == "route":
+            results, timing = _route(job["cfg"], job["routing_tasks"], job["seed"])
+        else:
+            results, timing = _simulate(job["cfg"], job["tmp"], job["wall_cap_s"])
         payload = {"results": results, "timing": timing}
     except RoadweaverError as exc:
         payload = {"error": str(exc)}
     result.write_text(json.dumps(payload), encoding="utf-8")
 
 
-def _simulate(
-    cfg: str, tmp: str, wall_cap_s: float, routing_tasks: int, seed: int
-) -> tuple[dict, dict]:
-    """Load, step, route, close. Runs in the child only: libsumo is imported here so the
-    caller's process never loads it (SUMO_HOME is already set by ``child_env``)."""
+def _start(libsumo, cfg: str, options: list[str]) -> None:
+    """``libsumo.start`` on ``cfg``; a one-line error if SUMO cannot load it. libsumo is
+    imported in the children only, so the caller's process never loads it (SUMO_HOME is
+    already set by ``child_env``)."""
+    try:
+        libsumo.start(["sumo", "-c", cfg, *options, "--no-step-log", "true",
+                       "--routing-algorithm", "astar"])  # fmt: skip
+    except libsumo.TraCIException as exc:
+        message = " ".join(str(exc).split()) or "see SUMO's messages"
+        raise RoadweaverError(f"sumo could not load {cfg}: {message}") from None
+
+
+def _simulate(cfg: str, tmp: str, wall_cap_s: float) -> tuple[dict, dict]:
+    """Load, step until done, close; the figures from SUMO's output files."""
     import libsumo
 
     stats, collisions = Path(tmp) / "statistics.xml", Path(tmp) / "collisions.xml"
     edgedata = Path(tmp) / "edgedata.xml"
     t0 = time.perf_counter()
-    try:
-        libsumo.start(["sumo", "-c", cfg, "--statistic-output", str(stats),
-                       "--collision-output", str(collisions),
-                       "--edgedata-output", str(edgedata),
-                       "--duration-log.statistics", "true", "--no-step-log", "true",
-                       "--routing-algorithm", "astar"])  # fmt: skip
-    except libsumo.TraCIException as exc:
-        message = " ".join(str(exc).split()) or "see SUMO's messages"
-        raise RoadweaverError(f"sumo could not load {cfg}: {message}") from None
+    _start(libsumo, cfg, ["--statistic-output", str(stats), "--collision-output",
+                          str(collisions), "--edgedata-output", str(edgedata),
+                          "--duration-log.statistics", "true"])  # fmt: skip
     t1 = time.perf_counter()
     try:
         completed = _step_until_done(libsumo, deadline=t1 + wall_cap_s)
         sim_end = libsumo.simulation.getTime()
         t2 = time.perf_counter()
-        routing = _routing_success(libsumo, routing_tasks, seed)
-        t3 = time.perf_counter()
     finally:
         libsumo.close()
-    results = {"completed": completed, "sim_end_s": sim_end, **_read_statistics(stats)}
-    results.update(routing, collision_sites=_collision_sites(collisions),
-                   edge_flows=_edge_flows(edgedata))
+    results = {"completed": completed, "sim_end_s": sim_end, **_read_statistics(stats),
+               "collision_sites": _collision_sites(collisions),
+               "edge_flows": _edge_flows(edgedata)}  # fmt: skip
     timing = {
         "load_s": t1 - t0,
         "simulation_wall_s": t2 - t1,
         "sim_s_per_wall_s": sim_end / max(t2 - t1, 1e-9),
-        "routing_ms_per_route": 1000 * (t3 - t2) / max(routing_tasks, 1),
     }
     return results, timing
+
+
+def _route(cfg: str, routing_tasks: int, seed: int) -> tuple[dict, dict]:
+    """Load the net (the configuration without its demand), answer the routing queries."""
+    import libsumo
+
+    _start(libsumo, cfg, ["--route-files", ""])
+    t0 = time.perf_counter()
+    try:
+        routing = _routing_success(libsumo, routing_tasks, seed)
+    finally:
+        libsumo.close()
+    return routing, {"routing_ms_per_route": 1000 * (time.perf_counter() - t0)
+                     / max(routing_tasks, 1)}
 
 
 def _step_until_done(libsumo, deadline: float) -> bool:
