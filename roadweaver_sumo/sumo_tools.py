@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import subprocess
+import sys
 from pathlib import Path
 
 import sumo
@@ -31,6 +32,22 @@ def tool(relative: str) -> str:
     if not path.exists():
         raise RoadweaverError(f"SUMO tool {relative!r} not found at {path}; reinstall eclipse-sumo")
     return str(path)
+
+
+# Runs a Python tool as its own script would run (``__main__``, its folder first on sys.path)
+# with the cycle collector off: a short-lived tool needs no cycle collection, and the collector
+# costs randomTrips.py a fifth of its time while sumolib reads a large net (2.19 -> 1.76 s on a
+# 10 km map; the same trips).
+_RUN_WITHOUT_CYCLE_GC = (
+    "import gc, os, runpy, sys; gc.disable(); sys.argv = sys.argv[1:]; "
+    "sys.path[0] = os.path.dirname(sys.argv[0]); runpy.run_path(sys.argv[0], run_name='__main__')"
+)
+
+
+def python_tool(relative: str) -> list[str]:
+    """The command line start that runs the Python script ``relative`` under SUMO's ``tools/``
+    (see :func:`tool`) in this interpreter, without cycle collection."""
+    return [sys.executable, "-c", _RUN_WITHOUT_CYCLE_GC, tool(relative)]
 
 
 def child_env() -> dict:

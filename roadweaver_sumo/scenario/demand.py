@@ -26,7 +26,6 @@ duarouter uses A* (same shortest paths as Dijkstra, ~2x faster on a 900-junction
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -34,7 +33,7 @@ from pathlib import Path
 from lxml import etree
 
 from ..errors import RoadweaverError
-from ..sumo_tools import binary, run, tool
+from ..sumo_tools import binary, python_tool, run
 from .xmlfile import write_xml
 
 DEMAND_FILE = "demand.rou.xml"
@@ -103,7 +102,7 @@ def _random_trips(
 ) -> None:
     """Run randomTrips.py (seeded, unvalidated: duarouter validates next) for ~``count`` trips."""
     args = [
-        sys.executable, tool("randomTrips.py"),
+        *python_tool("randomTrips.py"),
         "-n", net_file, "-o", _SAMPLE_TRIPS, "--no-validate",
         "--seed", str(seed), "--begin", "0", "--end", repr(float(duration)),
         "--period", repr(duration / count),
