@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,10 +23,12 @@ from .hdmap import build_hdmap, hdmap_metrics
 from .metrics import graph_metrics
 from .render import net_drawing, render_preview
 from .scenario.demand import write_demand
-from .scenario.sumocfg import write_sumocfg
+from .scenario.sumocfg import NET_FILE, write_sumocfg
 from .skeleton import make_skeleton
 from .spec import ScenarioSpec
 from .staging import staged_folder
+from .validate.net_metrics import loaded_net_metrics
+from .validate.netgraph import load_net
 from .validate.report import check_thresholds, validate_scenario, write_report
 
 SPEC_FILE = "spec.json"
@@ -57,23 +60,25 @@ def make_scenario(
     out_dir = Path(out_dir)
     stages: dict[str, float] = {}
     with staged_folder(out_dir, force) as tmp:
-        generation = build_scenario_files(spec, tmp, stages, log)
-        report, drawing = None, {}
+        measured: dict = {}
+        after_net = (lambda: _measure_net(tmp, spec.area_km2, measured)) if validate else None
+        generation = build_scenario_files(spec, tmp, stages, log, after_net=after_net)
+        report = None
         if validate:
             log("validating: libsumo run and routing tasks")
             start = time.perf_counter()
-            report, sim_timing = validate_scenario(
-                tmp, alongside=lambda net: drawing.update(net=net_drawing(net)))
+            report, sim_timing = validate_scenario(tmp, net_figures=measured["figures"])
             stages["validate"] = time.perf_counter() - start
             report["generation"] = generation
             write_report(tmp, report)
+            sim_timing["net_metrics_s"] = measured["seconds"]
             timing = {"stages_s": stages, "validation": sim_timing}
         else:
             write_report(tmp, {"generation": generation, "validated": False})
             timing = {"stages_s": stages}
         start = time.perf_counter()
         # after the report: the picture shows the validation's edge flows
-        render_preview(tmp, net=drawing.get("net"))
+        render_preview(tmp, net=measured.get("drawing"))
         stages["preview"] = time.perf_counter() - start
         (tmp / TIMING_FILE).write_text(_json(_rounded_timing(timing)), encoding="utf-8")
     if report is not None:
@@ -81,8 +86,16 @@ def make_scenario(
     return ScenarioResult(out_dir, report, timing)
 
 
-def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) -> dict:
-    """Every stage up to the runnable scenario; returns the generation metrics for the report."""
+def build_scenario_files(
+    spec: ScenarioSpec, folder: Path, stages: dict, log,
+    after_net: Callable[[], None] | None = None,
+) -> dict:
+    """Every stage up to the runnable scenario; returns the generation metrics for the report.
+
+    netconvert and the demand tools run from a worker thread, which only waits for them, so this
+    process does its own work on the other core meanwhile: the generation metrics while
+    netconvert builds the net, then ``after_net`` (make-scenario measures the net there for
+    validation) while the demand is sampled and routed."""
 
     @contextmanager
     def stage(name: str) -> Iterator[None]:
@@ -90,6 +103,15 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
         start = time.perf_counter()
         yield
         stages[name] = time.perf_counter() - start
+
+    def netconvert() -> None:
+        with stage("netconvert"):
+            run_netconvert(folder, spec.netconvert_template)
+
+    def demand() -> None:
+        with stage("demand"):
+            write_demand(folder, vehicles=spec.vehicles, duration=spec.duration, seed=spec.seed)
+            write_sumocfg(folder, duration=spec.duration, seed=spec.seed)
 
     with cyclic_gc_paused():
         with stage("skeleton"):
@@ -101,17 +123,30 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
         with stage("export"):
             write_map_files(hdmap, folder)
             (folder / SPEC_FILE).write_text(spec.to_json(), encoding="utf-8")
-    with stage("netconvert"):
-        run_netconvert(folder, spec.netconvert_template)
-    with stage("demand"):
-        write_demand(folder, vehicles=spec.vehicles, duration=spec.duration, seed=spec.seed)
-        write_sumocfg(folder, duration=spec.duration, seed=spec.seed)
-    return {
-        "target_density": spec.density,
-        "skeleton": skeleton.provenance,
-        "road_graph": graph_metrics(graph, spec.area_km2),
-        "hdmap": hdmap_metrics(hdmap),
-    }
+    with ThreadPoolExecutor(1, thread_name_prefix="sumo-tools") as sumo_tools:
+        net_built = sumo_tools.submit(netconvert)
+        generation = {
+            "target_density": spec.density,
+            "skeleton": skeleton.provenance,
+            "road_graph": graph_metrics(graph, spec.area_km2),
+            "hdmap": hdmap_metrics(hdmap),
+        }
+        del skeleton, graph, hdmap  # their memory is free before the net is measured
+        net_built.result()
+        demand_written = sumo_tools.submit(demand)
+        if after_net is not None:
+            after_net()
+        demand_written.result()
+    return generation
+
+
+def _measure_net(folder: Path, area_km2: float, into: dict) -> None:
+    """The validation's net figures and the preview's drawing from one read of the net."""
+    start = time.perf_counter()
+    net = load_net(folder / NET_FILE)
+    into["figures"] = loaded_net_metrics(net, area_km2)
+    into["drawing"] = net_drawing(net)
+    into["seconds"] = time.perf_counter() - start
 
 
 def _rounded_timing(obj):

@@ -146,12 +146,14 @@ def test_report_without_validation_figures_fails_with_one_line(tmp_path):
     assert report["failures"] == ["not validated: the report has no net or simulation figures"]
 
 
-def test_validation_hands_its_net_to_alongside_work_and_reports_the_same(healthy):
-    seen = []
-    report, _ = validate_scenario(healthy, alongside=seen.append)
-    plain, _ = validate_scenario(healthy)
-    assert report == plain
-    assert len(seen) == 1 and len(seen[0].getEdges(withInternal=False)) == 24
+def test_validation_with_net_figures_measured_before_reports_the_same(healthy):
+    figures = net_metrics(healthy / "map.net.xml", area_km2=0.09)
+    given, timing = validate_scenario(healthy, net_figures=figures)
+    measured, _ = validate_scenario(healthy)
+    assert given == measured and "net_metrics_s" not in timing
+    figures["lcc_ratio"] = 0.5  # the given figures are the ones judged
+    assert validate_scenario(healthy, net_figures=figures)[0]["failures"][0].startswith(
+        "net.lcc_ratio")
 
 
 def _children() -> list[int]:

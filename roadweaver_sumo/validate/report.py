@@ -10,17 +10,15 @@ from __future__ import annotations
 import json
 import operator
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
-import sumolib
 
 from ..errors import RoadweaverError
 from ..scenario.sumocfg import NET_FILE, end_time
-from .net_metrics import loaded_net_metrics
-from .netgraph import load_net, require_net
+from .net_metrics import net_metrics
+from .netgraph import require_net
 from .simulation import started_simulation
 
 SCHEMA_VERSION = 1
@@ -54,14 +52,13 @@ THRESHOLDS: tuple[Threshold, ...] = (
 _OPS = {">=": operator.ge, "<=": operator.le, "==": operator.eq}
 
 
-def validate_scenario(
-    out_dir: Path, alongside: Callable[[sumolib.net.Net], None] | None = None
-) -> tuple[dict, dict]:
+def validate_scenario(out_dir: Path, net_figures: dict | None = None) -> tuple[dict, dict]:
     """Measure the scenario in ``out_dir`` (net metrics + simulation + routing) and judge it.
 
-    The simulation runs in its child process while this one reads the net and measures it, so
-    the two use both cores; ``alongside`` is handed the net read here, to do more work with it
-    in that time (the preview takes its drawing from it).
+    The simulation and the routing queries run in child processes while this one measures the
+    net, so the work spreads over the cores. ``net_figures`` are :func:`net_metrics` of the
+    folder's net when the caller measured them already (make-scenario does, while the demand
+    is routed).
 
     Returns (report, timing); the report carries ``passed`` and ``failures``.
     """
@@ -74,20 +71,18 @@ def validate_scenario(
     with started_simulation(
         out_dir, wall_cap_s=wall_cap_s(spec["duration"]), seed=spec["seed"]
     ) as finish_simulation:
-        loaded = load_net(net_path)
-        net = loaded_net_metrics(loaded, area_km2)
-        t1 = time.perf_counter()
-        if alongside is not None:
-            alongside(loaded)
-        del loaded  # sumolib's net is large: gone before the simulation's results are read
+        timing = {}
+        if net_figures is None:
+            net_figures = net_metrics(net_path, area_km2)
+            timing["net_metrics_s"] = time.perf_counter() - t0
         sim, sim_timing = finish_simulation()
     vehicles = spec["vehicles"]
     sim["arrived_ratio"] = sim["arrived"] / vehicles
     sim["teleport_ratio"] = sim["teleports_total"] / vehicles
     scenario = {k: spec[k] for k in ("width", "height", "seed", "vehicles", "duration")}
     scenario.update(area_km2=area_km2, end_s=end_time(spec["duration"]))
-    report = _with_verdict({"scenario": scenario, "net": net, "simulation": sim})
-    timing = {"net_metrics_s": t1 - t0, **sim_timing, "total_s": time.perf_counter() - t0}
+    report = _with_verdict({"scenario": scenario, "net": net_figures, "simulation": sim})
+    timing.update(sim_timing, total_s=time.perf_counter() - t0)
     return report, _rounded(timing, 3)
 
 
