@@ -201,6 +201,30 @@ def test_straight_chord_ends_on_a_dead_end_inside_the_block():
     assert insert_chord(G, chord, MIN_EDGE, index) is not None
 
 
+def test_fill_does_not_cut_a_dead_end_road_into_a_stub():
+    """A chord that would meet a dead-end road closer than ``stub`` to its end is refused: the
+    clean-up would prune that tip and with it the chord's junction, two road nodes the fill had
+    counted. Farther from the end, or without the rule, it is accepted."""
+    from roadweaver_sumo.expand.edge_index import EdgeIndex
+    from roadweaver_sumo.expand.fill import insert_chord
+
+    ring = np.array([[0, 0], [800, 0], [800, 400], [0, 400], [0, 0]], float)
+    dead_end = np.array([[0, 150], [600, 150]], float)  # its end at x = 600
+    near_tip = np.array([[560, 150], [560, 400]], float)  # leaves 40 m beyond the junction
+    farther = np.array([[400, 150], [400, 400]], float)  # leaves 200 m
+
+    def fresh():
+        G = build_planar_graph([(ring, "collector"), (dead_end, "local")], 1000, 1000)
+        return G, EdgeIndex(G)
+
+    G, index = fresh()
+    assert insert_chord(G, near_tip, MIN_EDGE, index, stub=60.0) is None
+    assert road_node_count(G) == road_node_count(fresh()[0])  # nothing was split
+    assert insert_chord(G, farther, MIN_EDGE, index, stub=60.0) is not None
+    G, index = fresh()
+    assert insert_chord(G, near_tip, MIN_EDGE, index) is not None  # no stub rule
+
+
 def test_fill_continues_a_side_street_into_a_crossroads():
     """A T-junction on a block's edge whose stem lies outside the block: the continuation
     road starts at that junction, straight on from the stem, and crosses the block, so the T

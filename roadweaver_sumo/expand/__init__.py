@@ -46,7 +46,7 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     target = spec.target_road_nodes
     rng = spec.rng(STAGE_FILL)
     for _ in range(DENSITY_ROUNDS):
-        fill_to_density(G, target, field, rng, MIN_EDGE, MIN_ANGLE)
+        fill_to_density(G, target, field, rng, MIN_EDGE, MIN_ANGLE, stub=stub)
         prune_to_density(G, target)
         G = _renode(G, [])
         clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN)

@@ -47,8 +47,10 @@ def fill_to_density(
     rng: np.random.Generator,
     min_edge: float,
     min_angle: float,
+    stub: float = 0.0,
 ) -> None:
-    """Split blocks until ``road_node_count(G) >= target`` or no block can be split."""
+    """Split blocks until ``road_node_count(G) >= target`` or no block can be split. No chord
+    ends on a dead-end road closer than ``stub`` to its end (see :func:`insert_chord`)."""
     heap = [(-f.area, k, f) for k, f in enumerate(sorted(faces(G), key=lambda f: f.bounds))]
     heapq.heapify(heap)
     counter = len(heap)
@@ -66,7 +68,7 @@ def fill_to_density(
             chord = make_chord(face, nodes, field, rng, min_edge, min_angle)
             if chord is not None:
                 start = nodes.at(chord[0])
-                ends = insert_chord(G, chord, min_edge, index, start_node=start)
+                ends = insert_chord(G, chord, min_edge, index, start_node=start, stub=stub)
                 nodes.update()  # a refused chord may still have split a road at its first end
             if ends is not None:
                 break
@@ -405,14 +407,17 @@ def _ends_ok(face: Polygon, nodes: _NodePoints, chord, min_edge: float, min_angl
 
 
 def insert_chord(
-    G: nx.Graph, chord: np.ndarray, min_edge: float, index: EdgeIndex, start_node=None
+    G: nx.Graph, chord: np.ndarray, min_edge: float, index: EdgeIndex, start_node=None,
+    stub: float = 0.0,
 ) -> tuple | None:
     """Split the road(s) the chord ends on and add the chord as a local road between them
     (from ``start_node`` itself, if given: a chord that starts at a junction).
 
     Refused when the chord touches any road other than those it ends on (a dead-end road
-    inside the block, say), so the graph stays planar without re-noding. Returns the chord's
-    end nodes, or None when refused."""
+    inside the block, say), so the graph stays planar without re-noding, and when it would cut
+    a dead-end road less than ``stub`` from its end: the clean-up prunes such a tip, and the
+    chord's junction with it, so the fill would count two road nodes the map then loses.
+    Returns the chord's end nodes, or None when refused."""
     line = LineString(chord)
     if start_node is not None:  # the junction's own roads meet the chord's first metres
         line = shapely.ops.substring(line, 2.0, line.length)
@@ -420,7 +425,10 @@ def insert_chord(
     if not 1 <= len(touching) <= (1 if start_node is not None else 2):
         return None
     nodes = [] if start_node is None else [start_node]
-    for point in (chord[0], chord[-1])[len(nodes):]:
+    ends = (chord[0], chord[-1])[len(nodes):]
+    if any(_cuts_off_stub(G, point, min_edge, stub, index) for point in ends):
+        return None
+    for point in ends:
         # Look the edge up again for the second end: splitting for the first may have cut it.
         near = index.near(Point(point), 1.0)
         if not near:
@@ -442,6 +450,21 @@ def insert_chord(
     add_road(G, u, v, chord, "local")
     index.add(u, v)
     return u, v
+
+
+def _cuts_off_stub(G: nx.Graph, point, tolerance: float, stub: float,
+                   index: EdgeIndex) -> bool:
+    """Whether :func:`split_edge_at` at ``point`` would leave a dead-end piece of road shorter
+    than ``stub`` (ending on the road's own end node instead makes no such piece)."""
+    near = index.near(Point(point), 1.0)
+    if stub <= 0 or not near:
+        return False
+    u, v = near[0]
+    line = LineString(edge_coords(G, u, v))
+    s = line.project(Point(point))
+    if s < tolerance or line.length - s < tolerance:
+        return False
+    return (G.degree(u) == 1 and s < stub) or (G.degree(v) == 1 and line.length - s < stub)
 
 
 def split_edge_at(G: nx.Graph, edge, point, tolerance: float, index: EdgeIndex):
