@@ -201,28 +201,31 @@ def test_straight_chord_ends_on_a_dead_end_inside_the_block():
     assert insert_chord(G, chord, MIN_EDGE, index) is not None
 
 
-def test_fill_does_not_cut_a_dead_end_road_into_a_stub():
-    """A chord that would meet a dead-end road closer than ``stub`` to its end is refused: the
-    clean-up would prune that tip and with it the chord's junction, two road nodes the fill had
-    counted. Farther from the end, or without the rule, it is accepted."""
+def test_fill_counts_road_nodes_as_the_clean_up_leaves_them():
+    """A chord that meets a dead-end road close to its end leaves a tip the clean-up prunes,
+    and the chord's junction with it: the fill counts that end as one road node fewer (the
+    dead end), not one more (the junction), and ``stub_loss`` predicts the clean-up's count for the whole
+    graph. A chord farther from the end counts as the junction it stays."""
     from roadweaver_sumo.expand.edge_index import EdgeIndex
-    from roadweaver_sumo.expand.fill import insert_chord
+    from roadweaver_sumo.expand.fill import counted_change, insert_chord, stub_loss
+    from roadweaver_sumo.expand.planar import clean
 
     ring = np.array([[0, 0], [800, 0], [800, 400], [0, 400], [0, 0]], float)
     dead_end = np.array([[0, 150], [600, 150]], float)  # its end at x = 600
     near_tip = np.array([[560, 150], [560, 400]], float)  # leaves 40 m beyond the junction
-    farther = np.array([[400, 150], [400, 400]], float)  # leaves 200 m
-
-    def fresh():
+    farther = np.array([[300, 150], [300, 400]], float)  # leaves 300 m
+    stub = 60.0
+    # the far end of either chord is a new T-junction on the ring: +1
+    for chord, expected in ((near_tip, 0), (farther, 2)):
         G = build_planar_graph([(ring, "collector"), (dead_end, "local")], 1000, 1000)
-        return G, EdgeIndex(G)
-
-    G, index = fresh()
-    assert insert_chord(G, near_tip, MIN_EDGE, index, stub=60.0) is None
-    assert road_node_count(G) == road_node_count(fresh()[0])  # nothing was split
-    assert insert_chord(G, farther, MIN_EDGE, index, stub=60.0) is not None
-    G, index = fresh()
-    assert insert_chord(G, near_tip, MIN_EDGE, index) is not None  # no stub rule
+        before = road_node_count(G)
+        ends = insert_chord(G, chord, MIN_EDGE, EdgeIndex(G))
+        assert ends is not None
+        change = sum(counted_change(G, n, stub) for n in ends)
+        assert change == expected
+        assert road_node_count(G) - stub_loss(G, stub) == before + change
+        clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=0.0)
+        assert road_node_count(G) == before + change
 
 
 def test_fill_continues_a_side_street_into_a_crossroads():

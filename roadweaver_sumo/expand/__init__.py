@@ -47,7 +47,7 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     rng = spec.rng(STAGE_FILL)
     for _ in range(DENSITY_ROUNDS):
         fill_to_density(G, target, field, rng, MIN_EDGE, MIN_ANGLE, stub=stub)
-        prune_to_density(G, target)
+        prune_to_density(G, target, stub)
         G = _renode(G, [])
         clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN)
         if abs(road_node_count(G) - target) <= max(1, DENSITY_TOLERANCE * target):
