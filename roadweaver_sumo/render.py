@@ -248,7 +248,7 @@ def net_drawing(net) -> dict:
         shape = node.getShape()
         if len(shape) >= 3:
             junctions.append(np.asarray(shape, dtype=float)[:, :2])
-        nodes.setdefault(node.getType(), []).append(node.getCoord()[:2])
+        nodes.setdefault(_kind(node), []).append(node.getCoord()[:2])
     xmin, ymin, xmax, ymax = net.getBoundary()
     return {
         "lanes": lanes,
@@ -260,6 +260,14 @@ def net_drawing(net) -> dict:
         "nodes": {kind: np.asarray(xy, dtype=float) for kind, xy in nodes.items()},
         "bounds": (xmin, ymin, xmax, ymax),
     }
+
+
+def _kind(node) -> str:
+    """The node's SUMO junction type, except that a node with roads to one other node only is a
+    ``dead_end`` (the road graph's definition, as in the report): netconvert types our dead
+    ends ``priority``, since cars can turn around there."""
+    others = {n.getID() for n in node.getNeighboringNodes()} - {node.getID()}
+    return "dead_end" if len(others) == 1 else node.getType()
 
 
 def _read_json(path: Path) -> dict:

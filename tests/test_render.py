@@ -71,3 +71,23 @@ def test_render_of_a_damaged_net_is_a_one_line_error(tmp_path, capsys):
     assert main(["render", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert err.startswith("roadweaver-sumo: error: cannot read") and err.count("\n") == 1
+
+
+def test_dead_ends_are_marked_although_netconvert_types_them_priority(tmp_path):
+    """A spur road's end, where cars can turn around, is a ``priority`` junction in SUMO's
+    net; the preview marks it as the dead end it is (as the report counts it)."""
+    from roadweaver_sumo.sumo_tools import binary, run
+
+    (tmp_path / "n.nod.xml").write_text(
+        '<nodes><node id="A" x="0" y="0"/><node id="B" x="200" y="0"/>'
+        '<node id="C" x="100" y="150"/><node id="D" x="300" y="-100"/></nodes>')
+    pairs = ("AB", "BC", "CA", "BD")
+    (tmp_path / "e.edg.xml").write_text("<edges>" + "".join(
+        f'<edge id="{a}{b}" from="{a}" to="{b}"/><edge id="{b}{a}" from="{b}" to="{a}"/>'
+        for a, b in pairs) + "</edges>")
+    run([binary("netconvert"), "-n", "n.nod.xml", "-e", "e.edg.xml", "-o", "map.net.xml"],
+        tmp_path, "netconvert")
+    net = load_net(tmp_path / "map.net.xml")
+    assert net.getNode("D").getType() == "priority"
+    drawing = net_drawing(net)
+    assert [tuple(xy) for xy in drawing["nodes"]["dead_end"]] == [net.getNode("D").getCoord()[:2]]
