@@ -21,7 +21,7 @@ from .export.netconvert import run_netconvert
 from .gc_pause import cyclic_gc_paused
 from .hdmap import build_hdmap, hdmap_metrics
 from .metrics import graph_metrics
-from .render import net_drawing, render_preview
+from .render import matplotlib_parts, net_drawing, render_preview
 from .scenario.demand import write_demand
 from .scenario.sumocfg import NET_FILE, write_sumocfg
 from .skeleton import make_skeleton
@@ -67,7 +67,11 @@ def make_scenario(
         if validate:
             log("validating: libsumo run and routing tasks")
             start = time.perf_counter()
-            report, sim_timing = validate_scenario(tmp, net_figures=measured["figures"])
+            # This process only waits for the libsumo children now: meanwhile, a thread
+            # imports what the preview draws with.
+            with ThreadPoolExecutor(1, thread_name_prefix="preview-import") as importer:
+                importer.submit(matplotlib_parts)
+                report, sim_timing = validate_scenario(tmp, net_figures=measured["figures"])
             stages["validate"] = time.perf_counter() - start
             report["generation"] = generation
             write_report(tmp, report)

@@ -11,18 +11,13 @@ saved without date or software metadata, so the same folder always gives the sam
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
-from matplotlib import colormaps
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.collections import LineCollection, PolyCollection
-from matplotlib.colors import ListedColormap, Normalize
-from matplotlib.figure import Figure
-from matplotlib.lines import Line2D
-from matplotlib.patches import Patch
 
 from .errors import RoadweaverError
 from .gc_pause import cyclic_gc_paused
@@ -41,6 +36,26 @@ COLLISION_COLOUR = "#00c853"  # stands out against the flow colours
 FLOW_CMAP = "inferno_r"
 FLOW_CMAP_RANGE = (0.12, 0.95)  # skip the near-white and near-black ends of the colour map
 PNG_METADATA = {"Software": None}  # no matplotlib version in the file: bytes depend on pixels only
+
+
+@functools.cache
+def matplotlib_parts() -> SimpleNamespace:
+    """The matplotlib classes the preview draws with, imported on first use: about 0.3 s, which
+    make-scenario spends in a thread while validation waits for its simulation, and which
+    commands that draw nothing never spend."""
+    from matplotlib import colormaps
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.collections import LineCollection, PolyCollection
+    from matplotlib.colors import ListedColormap, Normalize
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    return SimpleNamespace(
+        colormaps=colormaps, FigureCanvasAgg=FigureCanvasAgg, LineCollection=LineCollection,
+        PolyCollection=PolyCollection, ListedColormap=ListedColormap, Normalize=Normalize,
+        Figure=Figure, Line2D=Line2D, Patch=Patch,
+    )
 
 
 def render_preview(folder: Path, out: Path | None = None, net: dict | None = None) -> Path:
@@ -62,8 +77,9 @@ def render_preview(folder: Path, out: Path | None = None, net: dict | None = Non
     map_w = min(FIGURE_WIDTH_IN - 2 * SIDE_IN, MAX_MAP_HEIGHT_IN * width / height)
     map_h = map_w * height / width
     fig_h = TOP_IN + map_h + BOTTOM_IN
-    fig = Figure(figsize=(FIGURE_WIDTH_IN, fig_h), dpi=DPI)
-    FigureCanvasAgg(fig)
+    mpl = matplotlib_parts()
+    fig = mpl.Figure(figsize=(FIGURE_WIDTH_IN, fig_h), dpi=DPI)
+    mpl.FigureCanvasAgg(fig)
     left = (FIGURE_WIDTH_IN - map_w) / 2  # a tall map stands centred
     ax = fig.add_axes((left / FIGURE_WIDTH_IN, BOTTOM_IN / fig_h, map_w / FIGURE_WIDTH_IN,
                        map_h / fig_h))  # fmt: skip
@@ -90,9 +106,10 @@ def render_preview(folder: Path, out: Path | None = None, net: dict | None = Non
 def _draw_network(ax, net: dict, report: dict, pt_per_m: float, fig) -> None:
     """Junction areas, lanes (grey, or coloured by flow), junction markers, collision sites,
     and one legend for all of them."""
-    ax.add_collection(PolyCollection(net["junctions"], facecolors=JUNCTION_COLOUR,
+    mpl = matplotlib_parts()
+    ax.add_collection(mpl.PolyCollection(net["junctions"], facecolors=JUNCTION_COLOUR,
                                      edgecolors="none", zorder=1))  # fmt: skip
-    handles = [Patch(color=JUNCTION_COLOUR, label=f"junction area ({len(net['junctions'])})")]
+    handles = [mpl.Patch(color=JUNCTION_COLOUR, label=f"junction area ({len(net['junctions'])})")]
     sim = report.get("simulation") if isinstance(report.get("simulation"), dict) else {}
     handles += _draw_lanes(ax, net, sim.get("edge_flows") or {}, pt_per_m, fig)
     size = float(np.clip(9 * pt_per_m, 4.5, 9))
@@ -108,7 +125,7 @@ def _draw_network(ax, net: dict, report: dict, pt_per_m: float, fig) -> None:
         big = 1.6 if label == "collision site" else 1.0
         ax.plot(xy[:, 0], xy[:, 1], ls="none", marker=marker, ms=size * big, mfc=colour,
                 mec="white", mew=0.8, zorder=4)  # fmt: skip
-        handles.append(Line2D([], [], ls="none", marker=marker, ms=7 * big, mfc=colour,
+        handles.append(mpl.Line2D([], [], ls="none", marker=marker, ms=7 * big, mfc=colour,
                               mec="white", label=f"{label} ({len(xy)})"))  # fmt: skip
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=len(handles),
               fontsize=8, frameon=False, handlelength=1.6)  # fmt: skip
@@ -117,21 +134,24 @@ def _draw_network(ax, net: dict, report: dict, pt_per_m: float, fig) -> None:
 def _draw_lanes(ax, net: dict, flows: dict, pt_per_m: float, fig) -> list:
     """Lanes at their true width: unused ones grey, used ones coloured by their edge's flow
     (busiest on top), with a colour bar under the map. Returns the legend handle."""
+    mpl = matplotlib_parts()
     lanes, widths = net["lanes"], net["lane_widths"]
     values = np.array([_count(flows.get(edge)) for edge in net["lane_edges"]], dtype=float)
     busy = values > 0
-    ax.add_collection(LineCollection(
+    ax.add_collection(mpl.LineCollection(
         [lane for lane, b in zip(lanes, busy) if not b], colors=LANE_COLOUR,
         linewidths=np.maximum(widths[~busy] * pt_per_m, 0.4), capstyle="butt", zorder=2))
     label = f"lane ({len(lanes)})" if not busy.any() else f"lane without traffic ({(~busy).sum()})"
     if busy.any():
         lo, hi = FLOW_CMAP_RANGE
-        cmap = ListedColormap(colormaps[FLOW_CMAP](np.linspace(lo, hi, 256)), name="flow")
+        cmap = mpl.ListedColormap(mpl.colormaps[FLOW_CMAP](np.linspace(lo, hi, 256)),
+                                  name="flow")
         order = np.argsort(values[busy], kind="stable")
-        coll = LineCollection([lanes[i] for i in np.flatnonzero(busy)[order]], cmap=cmap,
-                              norm=Normalize(vmin=0, vmax=values.max()), capstyle="butt",
-                              linewidths=np.maximum(widths[busy][order] * pt_per_m, 0.8),
-                              zorder=3)  # fmt: skip
+        coll = mpl.LineCollection([lanes[i] for i in np.flatnonzero(busy)[order]], cmap=cmap,
+                                  norm=mpl.Normalize(vmin=0, vmax=values.max()),
+                                  capstyle="butt",
+                                  linewidths=np.maximum(widths[busy][order] * pt_per_m, 0.8),
+                                  zorder=3)  # fmt: skip
         coll.set_array(values[busy][order])
         ax.add_collection(coll)
         fig_h = fig.get_figheight()
@@ -139,7 +159,7 @@ def _draw_lanes(ax, net: dict, flows: dict, pt_per_m: float, fig) -> list:
                            orientation="horizontal")  # fmt: skip
         bar.set_label("vehicles that drove on the edge in the validation run", fontsize=9)
         bar.ax.tick_params(labelsize=8)
-    return [Line2D([], [], color=LANE_COLOUR, lw=3, label=label)]
+    return [mpl.Line2D([], [], color=LANE_COLOUR, lw=3, label=label)]
 
 
 def _collision_xy(net: dict, sites: list) -> np.ndarray:
