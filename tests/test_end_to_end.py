@@ -41,6 +41,15 @@ def test_scenario_folder_is_complete_and_passes(scenario):
     assert report["generation"]["hdmap"]["strongly_connected"]
 
 
+def test_timing_has_every_stage_and_the_whole_run(scenario):
+    timing = json.loads((scenario / "timing.json").read_text())
+    stages = timing["stages_s"]
+    assert set(stages) == {"skeleton", "expansion", "hdmap", "export", "netconvert", "demand",
+                           "validate", "preview"}
+    assert timing["total_s"] >= max(stages.values()) > 0
+    assert timing["validation"]["net_metrics_s"] > 0  # measured during demand routing
+
+
 def test_same_seed_gives_byte_identical_folder(scenario, tmp_path):
     again = tmp_path / "b"
     assert main([*ARGS, "--out", str(again)]) == 0
