@@ -54,9 +54,12 @@ def make_scenario(
     *,
     force: bool = False,
     validate: bool = True,
+    cores_busy: bool = False,
     log: Callable[[str], None] = lambda msg: None,
 ) -> ScenarioResult:
     """Generate, export, and (unless ``validate`` is False) validate one scenario.
+    ``cores_busy``: other jobs keep every core busy (a suite's workers), so validation does
+    not load the net a second time to answer the routing queries beside the simulation.
 
     ``timing.json`` holds each stage's own wall time and the whole run's (``total_s``): the
     stages after generation overlap (the net is measured while the demand is routed), so
@@ -76,7 +79,8 @@ def make_scenario(
             # imports what the preview draws with.
             with ThreadPoolExecutor(1, thread_name_prefix="preview-import") as importer:
                 importer.submit(matplotlib_parts)
-                report, sim_timing = validate_scenario(tmp, net_figures=measured["figures"])
+                report, sim_timing = validate_scenario(
+                    tmp, net_figures=measured["figures"], split_routing=not cores_busy)
             stages["validate"] = time.perf_counter() - start
             report["generation"] = generation
             write_report(tmp, report)

@@ -168,10 +168,20 @@ def _children() -> list[int]:
     return out
 
 
-def test_simulation_children_are_killed_when_the_caller_fails(healthy):
+@pytest.mark.parametrize("split_routing, children", [(True, 2), (False, 1)])
+def test_simulation_children_are_killed_when_the_caller_fails(healthy, split_routing, children):
     before = set(_children())
     with pytest.raises(RuntimeError, match="measuring failed"), \
-            started_simulation(healthy, wall_cap_s=60.0):
-        assert len(set(_children()) - before) == 2  # the simulation and the routing child
+            started_simulation(healthy, wall_cap_s=60.0, split_routing=split_routing):
+        assert len(set(_children()) - before) == children  # simulation (+ routing) child
         raise RuntimeError("measuring failed")
     assert set(_children()) - before == set()
+
+
+def test_routing_in_the_simulations_process_reports_the_same(healthy):
+    """A suite's workers keep the cores busy, so there the simulation's child answers the
+    routing queries itself instead of a second child loading the net again."""
+    split, split_timing = validate_scenario(healthy)
+    single, single_timing = validate_scenario(healthy, split_routing=False)
+    assert single == split
+    assert single_timing["routing_ms_per_route"] > 0 and split_timing["routing_ms_per_route"] > 0

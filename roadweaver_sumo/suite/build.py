@@ -18,7 +18,7 @@ from .. import __version__
 from ..errors import RoadweaverError
 from ..spec import ScenarioSpec
 from ..staging import staged_folder
-from .engines import check_engine, run_jobs
+from .engines import check_engine, cores_busy, run_jobs
 from .grid import SuiteSpec
 from .manifest import MANIFEST_FILE, error_entry, manifest_text, scenario_entry
 from .progress import Progress
@@ -66,7 +66,9 @@ def make_suite(
             progress.done(name, status)
 
         local = engine != "ray"  # Ray workers may sit on other machines: files come back
-        jobs = [(spec.to_json(), str(tmp / name) if local else None) for name, spec in specs.items()]
+        busy = cores_busy(engine, workers)
+        jobs = [(spec.to_json(), str(tmp / name) if local else None, busy)
+                for name, spec in specs.items()]
         where = f"Ray{f' at {address}' if address else ''}" if engine == "ray" else "local workers"
         progress.say(f"building {len(jobs)} scenarios on {where} into {out_dir}")
         run_jobs(build_job, jobs, on_result, engine=engine, workers=workers, address=address)
@@ -74,14 +76,15 @@ def make_suite(
     return SuiteResult(out_dir, entries)
 
 
-def build_job(job: tuple[str, str | None]) -> tuple[str, str | None, dict | None]:
-    """Worker: build one scenario. ``job`` is (spec JSON, folder); without a folder the scenario
-    is built in a temporary one and its files are returned as {relative path: bytes}.
+def build_job(job: tuple[str, str | None, bool]) -> tuple[str, str | None, dict | None]:
+    """Worker: build one scenario. ``job`` is (spec JSON, folder, cores busy); without a folder
+    the scenario is built in a temporary one and its files are returned as {relative path:
+    bytes}.
 
     Returns (name, error message or None, files or None). Errors are returned, not raised, so
     that one broken scenario is recorded in the manifest instead of stopping the whole suite.
     """
-    spec_json, dest = job
+    spec_json, dest, busy = job
     spec = _spec_from_json(spec_json)
     try:
         if spec.version != __version__:
@@ -89,11 +92,11 @@ def build_job(job: tuple[str, str | None]) -> tuple[str, str | None, dict | None
                 f"this worker runs roadweaver-sumo {__version__}, the suite wants {spec.version}"
             )
         if dest is not None:
-            _build(spec, Path(dest))
+            _build(spec, Path(dest), busy)
             return spec.name, None, None
         with tempfile.TemporaryDirectory(prefix="roadweaver-suite-") as tmp:
             folder = Path(tmp) / spec.name
-            _build(spec, folder)
+            _build(spec, folder, busy)
             files = {p.relative_to(folder).as_posix(): p.read_bytes()
                      for p in sorted(folder.rglob("*")) if p.is_file()}  # fmt: skip
         return spec.name, None, files
@@ -103,10 +106,10 @@ def build_job(job: tuple[str, str | None]) -> tuple[str, str | None, dict | None
         return spec.name, f"{type(exc).__name__}: {exc}", None
 
 
-def _build(spec: ScenarioSpec, folder: Path) -> None:
+def _build(spec: ScenarioSpec, folder: Path, busy: bool) -> None:
     from ..pipeline import make_scenario  # imported in the worker: keeps the CLI start fast
 
-    make_scenario(spec, folder, force=False, validate=True)
+    make_scenario(spec, folder, force=False, validate=True, cores_busy=busy)
 
 
 def _spec_from_json(text: str) -> ScenarioSpec:

@@ -14,7 +14,7 @@ import tempfile
 from pathlib import Path
 
 from ..errors import RoadweaverError
-from .engines import check_workers, run_jobs
+from .engines import check_workers, cores_busy, run_jobs
 from .manifest import environment, file_hashes, key_figures, read_manifest, spec_from_entry
 from .progress import Progress
 
@@ -44,7 +44,9 @@ def check_suite(
 
     what = "re-validating and regenerating" if regenerate else "re-validating"
     progress.say(f"{what} {len(entries)} scenarios of {folder}")
-    jobs = [(str(folder / name), entry, regenerate) for name, entry in sorted(entries.items())]
+    busy = cores_busy("local", workers)
+    jobs = [(str(folder / name), entry, regenerate, busy)
+            for name, entry in sorted(entries.items())]
     run_jobs(check_job, jobs, on_result, workers=workers)
     return dict(sorted(problems.items()))
 
@@ -61,9 +63,10 @@ def environment_note(folder: Path) -> str | None:
     return f"made with other versions: {', '.join(changed)}" if changed else None
 
 
-def check_job(job: tuple[str, dict, bool]) -> tuple[str, list[str]]:
-    """Worker: the problems of one scenario folder against its manifest entry."""
-    path, entry, regenerate = job
+def check_job(job: tuple[str, dict, bool, bool]) -> tuple[str, list[str]]:
+    """Worker: the problems of one scenario folder against its manifest entry. ``job`` is
+    (folder, manifest entry, regenerate, cores busy)."""
+    path, entry, regenerate, busy = job
     folder = Path(path)
     name = folder.name
     if "error" in entry:
@@ -72,9 +75,9 @@ def check_job(job: tuple[str, dict, bool]) -> tuple[str, list[str]]:
         return name, ["scenario folder is missing"]
     try:
         problems = _compare_files("file", file_hashes(folder), entry["files"])
-        problems += _revalidate(folder, entry["figures"])
+        problems += _revalidate(folder, entry["figures"], busy)
         if regenerate:
-            problems += _regenerate(entry)
+            problems += _regenerate(entry, busy)
     except OSError as exc:
         problems = [f"cannot read the scenario: {exc.strerror or exc}"]
     except Exception as exc:  # noqa: BLE001 - a damaged folder is a finding, not a crash
@@ -101,12 +104,12 @@ def _compare_files(what: str, actual: dict[str, str], expected: dict[str, str]) 
     return problems
 
 
-def _revalidate(folder: Path, figures: dict) -> list[str]:
+def _revalidate(folder: Path, figures: dict, busy: bool) -> list[str]:
     """Validate the folder on disk again (read-only: SUMO writes into a temporary folder)."""
     from ..validate.report import _with_verdict, validate_scenario
 
     try:
-        report, _ = validate_scenario(folder)
+        report, _ = validate_scenario(folder, split_routing=not busy)
     except RoadweaverError as exc:
         return [f"re-validation failed: {exc}"]
     now = key_figures(_with_verdict(report))  # rounded as report.json is
@@ -117,14 +120,14 @@ def _revalidate(folder: Path, figures: dict) -> list[str]:
     ]
 
 
-def _regenerate(entry: dict) -> list[str]:
+def _regenerate(entry: dict, busy: bool) -> list[str]:
     from ..pipeline import make_scenario
 
     spec = spec_from_entry(entry, "manifest")
     with tempfile.TemporaryDirectory(prefix="roadweaver-check-") as tmp:
         out = Path(tmp) / spec.name
         try:
-            make_scenario(spec, out, validate=True)
+            make_scenario(spec, out, validate=True, cores_busy=busy)
         except RoadweaverError as exc:
             return [f"regeneration failed: {exc}"]
         return _compare_files("regenerated", file_hashes(out), entry["files"])

@@ -27,6 +27,13 @@ def default_workers() -> int:
     return os.cpu_count() or 1
 
 
+def cores_busy(engine: str, workers: int | None) -> bool:
+    """Whether the suite's workers keep every core busy: then each scenario is validated
+    without a second process loading its net (``pipeline.make_scenario``). Ray runs a job per
+    CPU of each node."""
+    return engine == "ray" or check_workers(workers) >= default_workers()
+
+
 def check_workers(workers: int | None) -> int:
     workers = default_workers() if workers is None else workers
     if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= MAX_WORKERS:

@@ -52,11 +52,14 @@ THRESHOLDS: tuple[Threshold, ...] = (
 _OPS = {">=": operator.ge, "<=": operator.le, "==": operator.eq}
 
 
-def validate_scenario(out_dir: Path, net_figures: dict | None = None) -> tuple[dict, dict]:
+def validate_scenario(
+    out_dir: Path, net_figures: dict | None = None, *, split_routing: bool = True
+) -> tuple[dict, dict]:
     """Measure the scenario in ``out_dir`` (net metrics + simulation + routing) and judge it.
 
     The simulation and the routing queries run in child processes while this one measures the
-    net, so the work spreads over the cores. ``net_figures`` are :func:`net_metrics` of the
+    net, so the work spreads over the cores (``split_routing``: see
+    :func:`~.simulation.started_simulation`). ``net_figures`` are :func:`net_metrics` of the
     folder's net when the caller measured them already (make-scenario does, while the demand
     is routed).
 
@@ -69,7 +72,8 @@ def validate_scenario(out_dir: Path, net_figures: dict | None = None) -> tuple[d
     require_net(net_path)
     t0 = time.perf_counter()
     with started_simulation(
-        out_dir, wall_cap_s=wall_cap_s(spec["duration"]), seed=spec["seed"]
+        out_dir, wall_cap_s=wall_cap_s(spec["duration"]), seed=spec["seed"],
+        split_routing=split_routing,
     ) as finish_simulation:
         timing = {}
         if net_figures is None:

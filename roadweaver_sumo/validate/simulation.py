@@ -51,16 +51,20 @@ def run_simulation(
 
 @contextmanager
 def started_simulation(
-    out_dir: Path, *, wall_cap_s: float, routing_tasks: int = 1000, seed: int = 0
+    out_dir: Path, *, wall_cap_s: float, routing_tasks: int = 1000, seed: int = 0,
+    split_routing: bool = True,
 ) -> Iterator[Callable[[], tuple[dict, dict]]]:
     """:func:`run_simulation` started in child processes, so the caller can work meanwhile
     (validation measures the net). Yields ``finish``, which waits for the children and returns
     what :func:`run_simulation` returns; children still running when the block is left (the
     caller's own work failed) are killed.
 
-    The routing queries run in a second child on the same configuration without its demand,
-    alongside the simulation rather than after it: whether a route exists depends on the net
-    alone, and on a 10 km map the queries take as long as the simulation itself."""
+    With ``split_routing`` the routing queries run in a second child on the same configuration
+    without its demand, alongside the simulation rather than after it: whether a route exists
+    depends on the net alone, and on a 10 km map the queries take as long as the simulation
+    itself. That child loads the net a second time, which costs CPU time where other jobs keep
+    every core busy (a suite's workers): without it, the simulation's child answers the
+    queries after its run, as SUMO's one loaded net allows."""
     cfg = Path(out_dir).resolve() / SUMOCFG_FILE
     if not cfg.exists():
         raise RoadweaverError(f"simulation: {cfg} not found")
@@ -69,15 +73,18 @@ def started_simulation(
     with tempfile.TemporaryDirectory(prefix="roadweaver-sim-") as tmp:
         common = {"cfg": str(cfg), "wall_cap_s": wall_cap_s, "routing_tasks": routing_tasks,
                   "seed": seed}  # fmt: skip
-        children = [_Child(Path(tmp) / kind, {**common, "kind": kind}) for kind in JOBS]
+        kinds = ("simulate", "route") if split_routing else ("simulate and route",)
+        children = [_Child(Path(tmp) / kind.replace(" ", "-"), {**common, "kind": kind})
+                    for kind in kinds]
 
         def finish() -> tuple[dict, dict]:
-            (sim, sim_timing), (routing, routing_timing) = (
-                child.result(cfg, started + hard_limit, wall_cap_s) for child in children)
-            sim.update(routing)
-            timing = {**sim_timing, **routing_timing,
-                      "process_wall_s": time.perf_counter() - started}
-            return sim, timing
+            results, timing = {}, {}
+            for child in children:
+                found, took = child.result(cfg, started + hard_limit, wall_cap_s)
+                results.update(found)
+                timing.update(took)
+            timing["process_wall_s"] = time.perf_counter() - started
+            return results, timing
 
         try:
             yield finish
@@ -85,8 +92,6 @@ def started_simulation(
             for child in children:
                 child.kill()
 
-
-JOBS = ("simulate", "route")
 
 
 class _Child:
@@ -133,7 +138,9 @@ def _main(job: dict) -> None:
         if job["kind"] == "route":
             results, timing = _route(job["cfg"], job["routing_tasks"], job["seed"])
         else:
-            results, timing = _simulate(job["cfg"], job["tmp"], job["wall_cap_s"])
+            tasks = job["routing_tasks"] if job["kind"] == "simulate and route" else 0
+            results, timing = _simulate(job["cfg"], job["tmp"], job["wall_cap_s"], tasks,
+                                        job["seed"])
         payload = {"results": results, "timing": timing}
     except RoadweaverError as exc:
         payload = {"error": str(exc)}
@@ -152,8 +159,10 @@ def _start(libsumo, cfg: str, options: list[str]) -> None:
         raise RoadweaverError(f"sumo could not load {cfg}: {message}") from None
 
 
-def _simulate(cfg: str, tmp: str, wall_cap_s: float) -> tuple[dict, dict]:
-    """Load, step until done, close; the figures from SUMO's output files."""
+def _simulate(cfg: str, tmp: str, wall_cap_s: float, routing_tasks: int = 0,
+              seed: int = 0) -> tuple[dict, dict]:
+    """Load, step until done, answer ``routing_tasks`` routing queries, close; the figures
+    from SUMO's output files."""
     import libsumo
 
     stats, collisions = Path(tmp) / "statistics.xml", Path(tmp) / "collisions.xml"
@@ -167,15 +176,17 @@ def _simulate(cfg: str, tmp: str, wall_cap_s: float) -> tuple[dict, dict]:
         completed = _step_until_done(libsumo, deadline=t1 + wall_cap_s)
         sim_end = libsumo.simulation.getTime()
         t2 = time.perf_counter()
+        routing = _answered(libsumo, routing_tasks, seed) if routing_tasks else ({}, {})
     finally:
         libsumo.close()
     results = {"completed": completed, "sim_end_s": sim_end, **_read_statistics(stats),
                "collision_sites": _collision_sites(collisions),
-               "edge_flows": _edge_flows(edgedata)}  # fmt: skip
+               "edge_flows": _edge_flows(edgedata), **routing[0]}  # fmt: skip
     timing = {
         "load_s": t1 - t0,
         "simulation_wall_s": t2 - t1,
         "sim_s_per_wall_s": sim_end / max(t2 - t1, 1e-9),
+        **routing[1],
     }
     return results, timing
 
@@ -185,11 +196,16 @@ def _route(cfg: str, routing_tasks: int, seed: int) -> tuple[dict, dict]:
     import libsumo
 
     _start(libsumo, cfg, ["--route-files", ""])
-    t0 = time.perf_counter()
     try:
-        routing = _routing_success(libsumo, routing_tasks, seed)
+        return _answered(libsumo, routing_tasks, seed)
     finally:
         libsumo.close()
+
+
+def _answered(libsumo, routing_tasks: int, seed: int) -> tuple[dict, dict]:
+    """:func:`_routing_success` and its time per query."""
+    t0 = time.perf_counter()
+    routing = _routing_success(libsumo, routing_tasks, seed)
     return routing, {"routing_ms_per_route": 1000 * (time.perf_counter() - t0)
                      / max(routing_tasks, 1)}
 
