@@ -16,6 +16,7 @@ from roadweaver_sumo.errors import RoadweaverError
 from roadweaver_sumo.export import map_files
 from roadweaver_sumo.export.netconvert import available_templates, run_netconvert
 from roadweaver_sumo.export.sumo_plain import _num, _shape, lane_connections, write_plain
+from roadweaver_sumo.forked import can_fork
 from roadweaver_sumo.hdmap import build_hdmap
 from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
@@ -207,7 +208,7 @@ def test_parallel_and_sequential_writes_are_identical(tmp_path):
     assert written == _digests(tmp_path / "sequential")
 
 
-@pytest.mark.skipif(not map_files._can_fork(), reason="writers only fork where fork exists")
+@pytest.mark.skipif(not can_fork(), reason="writers only fork where fork exists")
 @pytest.mark.parametrize("writer, finished", [("write_lanelet2", "plain/map.con.xml"),
                                                ("write_opendrive", "map.osm")])
 def test_an_error_in_either_process_is_raised_here(tmp_path, monkeypatch, writer, finished):
