@@ -468,3 +468,35 @@ def test_nodes_near_a_long_ring_are_found_as_by_measuring_every_one():
     direct = shapely.distance(ring, shapely.points(pts)) <= 0.01
     assert 0 < direct.sum() < len(pts)
     assert np.array_equal(_near_ring(ring, pts, 0.01), direct)
+
+
+def test_dead_ends_linked_by_a_forked_child_give_the_same_links(monkeypatch):
+    """Large maps search every other dead end's link in a forked child; lowering the
+    threshold makes a small map use it too: the same links in the same order."""
+    from roadweaver_sumo.expand import reconnect
+
+    spec = ScenarioSpec(vehicles=1, density=30, width=1500, height=1500, seed=1,
+                        skeleton="learned")
+    G, cost, res = _before_reconnection(spec)
+    alone = reconnect.reconnect_dangles(G, cost, res, radius=100.0, margin=30.0)
+    monkeypatch.setattr(reconnect, "FORK_DEAD_ENDS", 2)
+    shared = reconnect.reconnect_dangles(G, cost, res, radius=100.0, margin=30.0)
+    assert len(alone) >= 10
+    assert len(shared) == len(alone)
+    assert all(np.array_equal(a, b) for a, b in zip(alone, shared, strict=True))
+
+
+def _before_reconnection(spec):
+    """The planar, cleaned graph the expansion reconnects, with the skeleton's cost map."""
+    from roadweaver_sumo.expand import BORDER_MARGIN, build_planar_graph, clean
+    from roadweaver_sumo.expand.growth import grow_collectors, skeleton_tensor_field
+    from roadweaver_sumo.spec import STAGE_GROWTH
+
+    skeleton = make_skeleton(spec)
+    field = skeleton_tensor_field(skeleton)
+    collectors = grow_collectors(spec, skeleton, field, spec.rng(STAGE_GROWTH))
+    roads = list(zip(skeleton.polylines, skeleton.road_classes(), strict=True))
+    roads += [(c, "collector") for c in collectors] + [(skeleton.frame, "collector")]
+    G = build_planar_graph(roads, spec.width, spec.height)
+    clean(G, MIN_EDGE, MIN_ANGLE, stub=MIN_EDGE, margin=BORDER_MARGIN, keep_largest=False)
+    return G, skeleton.cost_map(), skeleton.res

@@ -3,7 +3,8 @@
 Each dead end that is not at the map border searches, within a window around it, the cheapest
 path to any other road; cells the skeleton's road field marks as likely road are cheap, so the
 new link follows the layout the skeleton suggests. scikit-image's minimum-cost-path search does
-the graph search.
+the graph search. The searches do not depend on each other: a forked child runs every other
+one (a learned 10 km map has about 2,200 dead ends, 2 s of searching).
 """
 
 from __future__ import annotations
@@ -14,8 +15,12 @@ import shapely
 from shapely.ops import nearest_points
 from skimage.graph import MCP_Geometric
 
-from ..raster import rasterise_polylines
+from ..forked import map_shared
+from ..raster import rasterise_polylines, rasterise_window
 from .planar import components_main_first
+
+#: Fewer dead ends are searched in this process alone: a fork costs more than they take.
+FORK_DEAD_ENDS = 200
 
 
 def dangling_ends(G: nx.Graph, margin: float) -> list[int]:
@@ -33,26 +38,27 @@ def reconnect_dangles(
     G: nx.Graph, cost: np.ndarray, res: float, radius: float, margin: float
 ) -> list[np.ndarray]:
     """Polylines linking dangling ends to the nearest reachable road (not yet inserted)."""
-    links = []
     edges = sorted(G.edges)
     lines = [shapely.LineString(G.edges[e]["coords"]) for e in edges]
     tree = shapely.STRtree(lines)
     position = {e: k for k, e in enumerate(edges)}
     road_mask = _rasterise_edges(G, cost.shape, res)
-    for n in dangling_ends(G, margin):
+
+    def link(n):
         (w,) = G.neighbors(n)
         # The roads at the dead end's own junction are not targets: a link onto them would
         # make a loop back to where the road started, not a new connection.
         base = [(w, x) for x in G.neighbors(w)]
-        own = rasterise_polylines([G.edges[e]["coords"] for e in base], cost.shape, res)
         path = _cheapest_link(np.asarray(G.nodes[n]["xy"]), cost, road_mask, res, radius,
-                              exclude=own)
+                              exclude=[G.edges[e]["coords"] for e in base])
         if path is not None:
             skip = {position.get(e, position.get(e[::-1])) for e in base}
             path = _snap_end(path, lines, tree, skip)
-        if path is not None:
-            links.append(path)
-    return links
+        return path
+
+    paths = map_shared(link, dangling_ends(G, margin), name="linking dead ends",
+                       min_items=FORK_DEAD_ENDS)
+    return [path for path in paths if path is not None]
 
 
 def link_components(G: nx.Graph, cost: np.ndarray, res: float, radius: float) -> list[np.ndarray]:
@@ -85,17 +91,19 @@ def link_components(G: nx.Graph, cost: np.ndarray, res: float, radius: float) ->
     return links
 
 
-def _cheapest_link(p, cost, targets, res, radius, exclude=None):
-    """The cheapest path from ``p`` to a ``targets`` cell (not an ``exclude`` cell) within
-    ``radius``; the masks are only read inside that window (one search per dead end)."""
+def _cheapest_link(p, cost, targets, res, radius, exclude=()):
+    """The cheapest path from ``p`` to a ``targets`` cell (not a cell of the ``exclude``
+    polylines) within ``radius``; the masks are only read inside that window (one search per
+    dead end)."""
     ny, nx_ = cost.shape
     r = int(radius / res)
     ci, cj = int(p[1] / res), int(p[0] / res)
     i0, i1 = max(ci - r, 0), min(ci + r + 1, ny)
     j0, j1 = max(cj - r, 0), min(cj + r + 1, nx_)
     window_targets = targets[i0:i1, j0:j1]
-    if exclude is not None:
-        window_targets = window_targets & ~exclude[i0:i1, j0:j1]
+    if len(exclude):
+        window_targets = window_targets & ~rasterise_window(exclude, cost.shape, res,
+                                                            (i0, i1, j0, j1))
     if not window_targets.any():
         return None
     mcp = MCP_Geometric(cost[i0:i1, j0:j1])
