@@ -381,3 +381,20 @@ def test_compiled_lane_geometry_matches_numpy_bit_for_bit():
             cos_half = np.einsum("ij,ij->i", vert_n, np.vstack([seg_n[:1], seg_n]))
             numpy_way = vert_n / np.clip(cos_half, 1.0 / MAX_MITER, None)[:, None]
             assert np.array_equal(miter_normals(coords), numpy_way)
+
+
+def test_junctions_planned_by_a_forked_child_give_the_same_map(monkeypatch):
+    """Every other junction's movements come from a forked child on large maps; lowering the
+    threshold makes this small map use it too: the same lanes, links and connectors."""
+    from roadweaver_sumo.hdmap import build
+
+    alone = build_hdmap(grid_with_arterial_cross())
+    monkeypatch.setattr(build, "FORK_JUNCTIONS", 2)
+    shared = build_hdmap(grid_with_arterial_cross())
+    assert list(shared.lanes) == list(alone.lanes)
+    for lane_id, lane in alone.lanes.items():
+        other = shared.lanes[lane_id]
+        assert np.array_equal(lane.centre, other.centre)
+        assert (lane.successors, lane.predecessors) == (other.successors, other.predecessors)
+    assert {n: j.connectors for n, j in shared.junctions.items()} == {
+        n: j.connectors for n, j in alone.junctions.items()}
