@@ -9,7 +9,7 @@ import shapely
 from shapely.geometry import LineString
 
 from roadweaver_sumo.expand import MIN_ANGLE, MIN_EDGE, expand_skeleton
-from roadweaver_sumo.expand.planar import _point_along, build_planar_graph, departure_angles
+from roadweaver_sumo.expand.planar import build_planar_graph, departure_angles, point_along
 from roadweaver_sumo.gc_pause import cyclic_gc_paused
 from roadweaver_sumo.metrics import graph_metrics, road_node_count
 from roadweaver_sumo.roadgraph import edge_length
@@ -403,8 +403,9 @@ def test_component_filter_keeps_the_ring_over_a_bigger_cluster():
 
 
 def test_point_along_matches_geos_interpolate_bit_for_bit():
-    """Clean-up measures junction angles with ``_point_along`` instead of a shapely LineString;
-    any difference in the last bit could flip an angle test and change maps."""
+    """Clean-up measures junction angles and the fill continues side streets with
+    ``point_along`` instead of a shapely LineString; any difference in the last bit could flip
+    an angle test and change maps."""
     rng = np.random.default_rng(7)
     for _ in range(3000):
         n = int(rng.integers(2, 8))
@@ -414,8 +415,9 @@ def test_point_along_matches_geos_interpolate_bit_for_bit():
             c[1] = c[0]  # a zero-length step
         for coords in (c, c[::-1]):  # a reversed view too: how a road's far end is read
             line = shapely.LineString(coords)
-            q = line.interpolate(min(20.0, line.length * 0.5))
-            assert _point_along(coords, 20.0) == (q.x, q.y)
+            for probe in (10.0, 20.0):  # the fill's and the clean-up's
+                q = line.interpolate(min(probe, line.length / 2))
+                assert point_along(coords, probe) == (q.x, q.y)
 
 
 def test_cycle_collector_is_paused_only_while_a_map_is_generated():

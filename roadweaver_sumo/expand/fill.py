@@ -28,6 +28,7 @@ from ..roadgraph import add_road, edge_coords, edge_length
 from ..streamlines import choose_axis, follow_field
 from ..tensor_field import TensorField
 from .edge_index import EdgeIndex
+from .planar import point_along
 
 STEP = 20.0  # metres per Euler step of a fill road (locals are short and gently curved)
 CONTINUE_SHARE = 0.5  # share of blocks first offered a continuation of a side street
@@ -294,9 +295,9 @@ def _continuation(G: nx.Graph, node) -> np.ndarray | None:
     xy = np.asarray(G.nodes[node]["xy"], float)
     leaving = []
     for other in sorted(G.neighbors(node)):
-        road = LineString(edge_coords(G, node, other))
-        ahead = road.interpolate(min(10.0, road.length / 2))  # past any kink at the junction
-        leaving.append(_unit(np.asarray(ahead.coords[0]) - xy))
+        # 10 m out (at most half the road), past any kink at the junction
+        ahead = point_along(edge_coords(G, node, other), 10.0)
+        leaving.append(_unit(np.array(ahead) - xy))
     for k, stem in enumerate(leaving):
         bar = [d for j, d in enumerate(leaving) if j != k]
         if float(bar[0] @ bar[1]) <= math.cos(math.radians(STRAIGHT_CAP)):

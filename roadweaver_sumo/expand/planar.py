@@ -210,7 +210,7 @@ def departure_angles(
             out.append((hit[1], w))
             continue
         c = edge_coords(G, n, w)
-        qx, qy = _point_along(c, probe)
+        qx, qy = point_along(c, probe)
         bearing = math.atan2(qy - float(c[0, 1]), qx - float(c[0, 0]))
         if cache is not None:
             cache[(n, w)] = (coords, bearing)
@@ -218,7 +218,7 @@ def departure_angles(
     return sorted(out)
 
 
-def _point_along(c: np.ndarray, probe: float) -> tuple[float, float]:
+def point_along(c: np.ndarray, probe: float) -> tuple[float, float]:
     """The point ``min(probe, half the length)`` along polyline ``c`` (n x 2), computed as
     GEOS's ``interpolate`` does, step for step (so the same bits), without building a
     LineString: clean-up measures tens of thousands of these, hence compiled."""
