@@ -11,6 +11,7 @@ channel the A* cost map; the expansion then grows, reconnects and fills to the e
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
 
 import networkx as nx
@@ -58,13 +59,19 @@ def learned_skeleton(spec: ScenarioSpec, generator=None) -> Skeleton:
     c, scale = condition_for(spec)
     seed = int(spec.rng(STAGE_SKELETON).integers(2**31))
     F, res = sample_field(gen, c, spec.width, spec.height, seed, scale=scale)
-    graph = field_to_graph(F, F.shape[1] * res, threshold=gen.road_threshold)
-    lines, classes = _clipped_roads(graph, spec.width, spec.height)
+    # The smoothed fields are scipy filters, which release the GIL: a thread computes them
+    # while this one extracts the centrelines (a third of a second at 10 km).
+    with ThreadPoolExecutor(1) as pool:
+        basis = pool.submit(_basis_field, F, res, spec)
+        road_prob = pool.submit(_resample, F[..., 0], res, spec.width, spec.height)
+        graph = field_to_graph(F, F.shape[1] * res, threshold=gen.road_threshold)
+        lines, classes = _clipped_roads(graph, spec.width, spec.height)
+        basis, road_prob = basis.result(), road_prob.result()
     return Skeleton(
         polylines=lines,
         frame=perimeter(spec.width, spec.height),
-        basis=_basis_field(F, res, spec),
-        road_prob=_resample(F[..., 0], res, spec.width, spec.height),
+        basis=basis,
+        road_prob=road_prob,
         res=FIELD_RES,
         classes=classes,
         grow_from_frame=True,
