@@ -47,9 +47,12 @@ def add_road(G: nx.Graph, u, v, coords, road_class: str) -> None:
 
 
 def edge_length(G: nx.Graph, u, v) -> float:
-    """Length of the polyline of edge (u, v) in metres."""
+    """Length of the polyline of edge (u, v) in metres. (``np.diff`` computes the same steps;
+    clean-up and the fill ask for 100,000 lengths on a 10 km map, and its call costs more than
+    the arithmetic.)"""
     c = G.edges[u, v]["coords"]
-    return float(np.hypot(*np.diff(c, axis=0).T).sum())
+    step = c[1:] - c[:-1]
+    return float(np.hypot(step[:, 0], step[:, 1]).sum())
 
 
 def edge_line(G: nx.Graph, u, v) -> LineString:
