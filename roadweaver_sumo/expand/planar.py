@@ -128,17 +128,37 @@ MIN_JUNCTION_GAP = 20.0
 def contract_short_edges(G: nx.Graph, min_length: float,
                          junction_gap: float = MIN_JUNCTION_GAP) -> None:
     """Merge the two ends of every road shorter than ``min_length``, and of every road between
-    two junctions shorter than ``junction_gap`` (the busier end stays)."""
+    two junctions shorter than ``junction_gap`` (the busier end stays).
+
+    Each pass first measures all roads in one vectorised step and looks closer only at those
+    that may be short: a merge replaces the roads of the node it drops and changes no other
+    road's polyline, so a road of the pass that still exists has the length measured."""
+    longest = max(junction_gap, min_length)
     changed = True
     while changed:
         changed = False
-        for u, v in sorted(G.edges):
-            if not G.has_edge(u, v):
+        edges = sorted(G.edges)
+        for (u, v), maybe_short in zip(edges, _maybe_shorter(G, edges, longest), strict=True):
+            if not maybe_short or not G.has_edge(u, v):
                 continue
             limit = junction_gap if G.degree(u) >= 3 and G.degree(v) >= 3 else min_length
             if edge_length(G, u, v) < max(limit, min_length):
                 merge_nodes(G, *_keep_and_drop(G, u, v))
                 changed = True
+
+
+def _maybe_shorter(G: nx.Graph, edges: list, length: float) -> np.ndarray:
+    """Per road, whether it may be shorter than ``length``: summed in another order than
+    ``edge_length`` sums, so with a margin (a road can only be looked at needlessly)."""
+    if not edges:
+        return np.zeros(0, dtype=bool)
+    coords = [G.edges[e]["coords"] for e in edges]
+    owner = np.repeat(np.arange(len(coords)), [len(c) for c in coords])
+    step = np.diff(np.concatenate(coords), axis=0)
+    inside = owner[1:] == owner[:-1]  # steps between two roads are not steps
+    lengths = np.bincount(owner[1:][inside], weights=np.hypot(*step[inside].T),
+                          minlength=len(coords))
+    return lengths < length * (1 + 1e-9) + 1e-9
 
 
 def merge_close_nodes(G: nx.Graph, radius: float) -> None:
