@@ -1,7 +1,7 @@
 """Scale and speed (issue 5): stage times, peak memory, netgenerate at the same node count, and
 quality side by side with netgenerate rand / grid / spider and a real OSM import.
 
-Usage: python bench/scale.py [--sizes 2000,4000,10000] [--repeats 5,3,1] [--density 30]
+Usage: python bench/scale.py [--sizes 2000,4000,10000] [--repeats 5,3,3] [--density 30]
                              [--skeleton procedural] [--osm FILE] [--json FILE]
 
 Every generation runs in its own process; its peak memory is the larger of its own ru_maxrss and
@@ -175,7 +175,8 @@ def osm_import(osm: Path, folder: Path, side: float) -> Path:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="2000,4000,10000")
-    ap.add_argument("--repeats", default="5,3,1", help="runs per size (seeds 0..n-1)")
+    ap.add_argument("--repeats", default="5,3,3",
+                    help="runs per size (seeds 0..n-1), each followed by a netgenerate run")
     ap.add_argument("--density", type=float, default=30.0)
     ap.add_argument("--skeleton", default="procedural")
     ap.add_argument("--osm", type=Path, default=DEFAULT_OSM, help="OSM file for the real import")
@@ -201,19 +202,25 @@ def measure(args, work: Path) -> None:
     print("size_m " + " ".join(f"{s:>10s}" for s in STAGES)
           + "  generation  total  gen/km2  peak_MB  nodes  netgenerate  ratio")
     for size, n in zip(sizes, repeats, strict=True):
-        runs = [run_child(size, args.density, seed, args.skeleton, work / f"ours-{size:.0f}-{seed}")
-                for seed in range(n)]
+        # Each of our runs is followed by a netgenerate run, so that a machine that slows down
+        # during the bench slows both; the ratio is of the two medians.
+        runs, rand_runs = [], []
+        for seed in range(n):
+            runs.append(run_child(size, args.density, seed, args.skeleton,
+                                  work / f"ours-{size:.0f}-{seed}"))
+            iterations = max(1, round(runs[0]["road_nodes"] / RAND_NODES_PER_ITERATION))
+            rand_runs.append(netgenerate(["--rand", "--rand.iterations", str(iterations)],
+                                         work / f"rand-{size:.0f}.net.xml"))
         med = {s: statistics.median(r["stages"][s] for r in runs) for s in STAGES}
         gen = statistics.median(sum(r["stages"][s] for s in GENERATION) for r in runs)
         total = statistics.median(sum(r["stages"].values()) for r in runs)
         nodes = runs[0]["road_nodes"]
-        iterations = max(1, round(nodes / RAND_NODES_PER_ITERATION))
-        rand = work / f"rand-{size:.0f}.net.xml"
-        rand_s = netgenerate(["--rand", "--rand.iterations", str(iterations)], rand)
+        rand_s = statistics.median(rand_runs)
         area = size * size / 1e6
         entry = {"median_s": med, "generation_s": gen, "total_s": total,
                  "generation_per_km2_s": gen / area, "peak_mb": max(r["peak_mb"] for r in runs),
                  "road_nodes": nodes, "runs": runs, "netgenerate_rand_s": rand_s,
+                 "netgenerate_rand_runs_s": rand_runs,
                  "netgenerate_rand_iterations": iterations,
                  "netgenerate_over_generation": rand_s / gen}
         results["sizes"][f"{size:.0f}"] = entry
