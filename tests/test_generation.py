@@ -55,23 +55,60 @@ def _sharpest_turn_deg(coords: np.ndarray, reach: float = 5.0) -> float:
     return worst
 
 
-def test_clean_up_never_joins_a_sharp_v_into_a_hairpin():
-    """Two roads meeting at a degree-2 node at 14° (a V): joining them would make one road
-    that runs out 500 m and comes back, whose lanes fold over each other. The clean-up drops
-    the V's minor road instead, as it does for a sharp pair at a junction."""
+def _arm(tip, bearings_and_lengths):
+    """A polyline from ``tip`` made of straight parts (bearing in degrees, length in metres)."""
+    points = [np.asarray(tip, float)]
+    for bearing, length in bearings_and_lengths:
+        step = np.array([math.cos(math.radians(bearing)), math.sin(math.radians(bearing))])
+        points.append(points[-1] + length * step)
+    return np.array(points)
+
+
+TIP = (500.0, 450.0)
+LEFT_ARM = np.array([[15.0, 400.0], TIP])  # leaves the tip at a bearing of 185.9°
+# The other arms run a few metres past the perimeter ring (x or y 15 / 985); clean-up prunes
+# the stub outside it.
+
+
+@pytest.mark.parametrize("other_arm", [
+    np.array([TIP, [15.0, 520.0]]),  # 14° V: joined, a 166° turn
+    _arm(TIP, [(140.9, 630.0)]),  # 45° V: over the clean-up's 30° junction limit, a 135° turn
+    _arm(TIP, [(165.9, 8.0), (115.9, 600.0)]),  # 20° for 8 m, then 70°: 20 m out it looks 50°
+], ids=["14 degrees", "45 degrees", "20 degrees near the tip"])
+def test_clean_up_never_joins_a_sharp_v_into_a_hairpin(other_arm):
+    """Two roads meeting at a degree-2 node in a V: joining them would make one road that runs
+    out 500 m and comes back, whose lanes fold over each other (near a junction SUMO's internal
+    lanes crossed, and a 20 km learned map had 35 collisions at one). The clean-up drops the V's
+    minor road instead, as it does for a sharp pair at a junction, for any V sharper than 60°,
+    measured 5 and 20 m out."""
     from roadweaver_sumo.expand.planar import clean
     from roadweaver_sumo.skeleton.model import perimeter
 
     ring = perimeter(1000, 1000)
-    arms = [np.array([[15.0, 400.0], [500.0, 450.0]]), np.array([[500.0, 450.0], [15.0, 520.0]])]
     # dead-end streets off the ring, so that no ring road joins the arms' two ends directly
     streets = [np.array([[15.0, 460.0], [200.0, 460.0]]), np.array([[985.0, 500.0], [800.0, 500.0]])]
-    roads = [(ring, "collector")] + [(line, "local") for line in streets + arms]
+    roads = [(ring, "collector")] + [(line, "local") for line in streets + [LEFT_ARM, other_arm]]
     G = build_planar_graph(roads, 1000, 1000)
     clean(G, MIN_EDGE, MIN_ANGLE, stub=MIN_EDGE, margin=1.0)
-    assert max(_sharpest_turn_deg(G.edges[e]["coords"]) for e in G.edges) < 120.0  # joined: 140
-    tip = [n for n in G.nodes if np.allclose(G.nodes[n]["xy"], [500.0, 450.0])]
+    assert max(_sharpest_turn_deg(G.edges[e]["coords"]) for e in G.edges) < 120.0
+    tip = [n for n in G.nodes if np.allclose(G.nodes[n]["xy"], TIP)]
     assert len(tip) == 1 and G.degree(tip[0]) == 1  # one arm of the V is left, a cul-de-sac
+
+
+def test_clean_up_joins_a_wide_bend_into_one_road():
+    """The hairpin rule leaves ordinary bends alone: arms meeting at 100° become one road."""
+    from roadweaver_sumo.expand.planar import clean
+    from roadweaver_sumo.skeleton.model import perimeter
+
+    streets = [np.array([[15.0, 460.0], [200.0, 460.0]]), np.array([[985.0, 500.0], [800.0, 500.0]])]
+    arms = [LEFT_ARM, _arm(TIP, [(85.9, 545.0)])]
+    roads = [(perimeter(1000, 1000), "collector")] + [(line, "local") for line in streets + arms]
+    G = build_planar_graph(roads, 1000, 1000)
+    clean(G, MIN_EDGE, MIN_ANGLE, stub=MIN_EDGE, margin=1.0)
+    assert not [n for n in G.nodes if np.allclose(G.nodes[n]["xy"], TIP)]  # dissolved
+    ends = [[15.0, 400.0], [538.4, 985.0]]
+    assert any(np.allclose(G.edges[e]["coords"][[0, -1]], ends, atol=0.5)
+               or np.allclose(G.edges[e]["coords"][[-1, 0]], ends, atol=0.5) for e in G.edges)
 
 
 def test_merging_a_ring_node_keeps_the_ring_on_the_border():
