@@ -19,6 +19,7 @@ from roadweaver_sumo.validate.report import (
     check_thresholds,
     summary_lines,
     validate_scenario,
+    wall_cap_s,
     write_report,
 )
 from roadweaver_sumo.validate.simulation import run_simulation, started_simulation
@@ -127,6 +128,15 @@ def test_wall_cap_stops_the_run_and_fails_completion(healthy):
     assert results["completed"] is False and results["arrived"] < 120
     failures = check_thresholds({"simulation": results})
     assert any(f.startswith("simulation.completed") for f in failures)
+
+
+def test_wall_cap_grows_with_the_vehicles_beyond_a_thousand():
+    """A 10,000-vehicle run on a 20 km map goes 10-17 sim-s per wall-s when healthy: its cap
+    allows ten times the floor speed of a run of up to 1000 vehicles, which keeps its cap."""
+    one_hour = wall_cap_s(3600.0, 500)
+    assert one_hour == wall_cap_s(3600.0, 1000) == 60.0 + 7200.0 / 20.0
+    assert wall_cap_s(3600.0, 10000) - 60.0 == pytest.approx(10 * (one_hour - 60.0))
+    assert wall_cap_s(7200.0, 500) > one_hour
 
 
 def test_simulation_that_cannot_load_raises_a_one_line_error(healthy, tmp_path):

@@ -26,9 +26,12 @@ REPORT_FILE = "report.json"
 SPEC_FILE = "spec.json"
 DIGITS = 6  # floats in report.json are rounded to this many decimals
 # Wall-clock cap of the simulation: a minute for loading plus the configured horizon at 20 sim-s
-# per wall-s. Healthy runs go 1000+ sim-s/s; only gridlock (~30 sim-s/s) comes near the cap.
+# per wall-s for every 1000 vehicles (a step costs about as much as the vehicles in it). Healthy
+# runs of 500 vehicles go 1000+ sim-s/s; only gridlock (~30 sim-s/s) comes near the cap. A 20 km
+# map with 10,000 vehicles runs at 10-17 sim-s/s, healthy, and hit a cap that ignored them.
 WALL_CAP_BASE_S = 60.0
 WALL_CAP_MIN_SPEED = 20.0
+WALL_CAP_VEHICLES = 1000
 
 
 class Threshold(NamedTuple):
@@ -72,7 +75,7 @@ def validate_scenario(
     require_net(net_path)
     t0 = time.perf_counter()
     with started_simulation(
-        out_dir, wall_cap_s=wall_cap_s(spec["duration"]), seed=spec["seed"],
+        out_dir, wall_cap_s=wall_cap_s(spec["duration"], spec["vehicles"]), seed=spec["seed"],
         split_routing=split_routing,
     ) as finish_simulation:
         timing = {}
@@ -90,9 +93,11 @@ def validate_scenario(
     return report, _rounded(timing, 3)
 
 
-def wall_cap_s(duration: float) -> float:
-    """Wall-clock cap (s) of the validation run of a scenario whose demand lasts ``duration``."""
-    return WALL_CAP_BASE_S + end_time(duration) / WALL_CAP_MIN_SPEED
+def wall_cap_s(duration: float, vehicles: int) -> float:
+    """Wall-clock cap (s) of the validation run of a scenario whose demand of ``vehicles``
+    lasts ``duration``."""
+    load = max(1.0, vehicles / WALL_CAP_VEHICLES)
+    return WALL_CAP_BASE_S + end_time(duration) / WALL_CAP_MIN_SPEED * load
 
 
 def read_spec(out_dir: Path) -> dict:
