@@ -5,10 +5,11 @@ Usage: python bench/robustness.py [--count 200] [--seed 0] [--skeleton procedura
 
 Each spec (sizes 0.5-5 km, squares and rectangles; densities 5-120 log-uniform; every style;
 random seeds) is built to its SUMO net and demand (no libsumo run) and measured on
-``map.net.xml``. Verdicts: ``valid`` (LCC 100 %, no crossing without junction, lane-level
-reachability >= 99.5 %), ``refused`` (the spec itself is impossible: a one-line RoadweaverError
-saying why), ``failed`` (a threshold missed), ``error`` (a RoadweaverError after the spec was
-accepted) or ``crash`` (any other exception). Prints the counts and every non-valid spec.
+``map.net.xml``. Verdicts: ``valid`` (LCC 100 %, no crossing without junction, no sharp
+bend, lane-level reachability >= 99.5 %), ``refused`` (the spec itself is impossible: a
+one-line RoadweaverError saying why), ``failed`` (a threshold missed), ``error`` (a
+RoadweaverError after the spec was accepted) or ``crash`` (any other exception). Prints the
+counts and every non-valid spec.
 """
 
 from __future__ import annotations
@@ -67,8 +68,10 @@ def check(spec_args: dict, skeleton: str) -> dict:
         problems.append(f"{net['crossings_without_junction']} crossings without junction")
     if net["lane_reachability"] < 0.995:
         problems.append(f"lane reachability {net['lane_reachability']:.4f}")
+    if net["sharp_bends"] > 0:
+        problems.append(f"{net['sharp_bends']} sharp bends")
     figures = {k: net[k] for k in ("road_nodes", "density", "lcc_ratio", "lane_reachability",
-                                   "crossings_without_junction")}
+                                   "crossings_without_junction", "sharp_bends")}
     return {"verdict": "failed" if problems else "valid", "reason": "; ".join(problems),
             "net": figures, "seconds": time.perf_counter() - start}
 

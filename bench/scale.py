@@ -29,7 +29,7 @@ from pathlib import Path
 STAGES = ("skeleton", "expansion", "hdmap", "export", "netconvert", "demand")
 GENERATION = ("skeleton", "expansion", "hdmap", "export")
 QUALITY = ("road_nodes", "density", "lcc_ratio", "dead_end_ratio", "cycle_ratio",
-           "crossings_without_junction", "bearing_entropy", "orientation_order",
+           "crossings_without_junction", "sharp_bends", "bearing_entropy", "orientation_order",
            "lane_reachability", "junction_reachability")
 DEFAULT_OSM = Path("/work/shared/data/osm/bad-hersfeld-de.osm.gz")
 RAND_NODES_PER_ITERATION = 0.85  # netgenerate --rand: road nodes per iteration, measured

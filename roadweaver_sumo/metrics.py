@@ -121,6 +121,70 @@ def orientation_order(G: nx.Graph, bins: int = BEARING_BINS) -> float:
     return 1.0 - ((h - h_min) / (h_max - h_min)) ** 2
 
 
+#: A road that turns by more than SHARP_BEND_DEG within SHARP_BEND_REACH_M metres of its length
+#: doubles back: lanes offset from it fold over each other, and near a junction SUMO's internal
+#: lanes there crossed (the collisions of a 20 km map were all at such hooks).
+SHARP_BEND_DEG = 120.0
+SHARP_BEND_REACH_M = 12.0
+
+
+def sharp_bends(G: nx.Graph) -> int:
+    """Roads whose direction changes by more than ``SHARP_BEND_DEG`` within
+    ``SHARP_BEND_REACH_M`` metres (between two steps at most that far apart along the road,
+    or at one vertex)."""
+    return len(sharp_bend_roads(G))
+
+
+def sharp_bend_roads(G: nx.Graph, turn_deg: float = SHARP_BEND_DEG,
+                     reach_m: float = SHARP_BEND_REACH_M) -> list:
+    """The edges counted by :func:`sharp_bends`.
+
+    The change is taken over the steps, so a bend rounded into many tiny segments counts as one
+    turn. One vectorised pass over all roads sums the turning within ``reach_m`` after each
+    step; only roads where that sum passes the limit are looked at step by step."""
+    limit = math.radians(turn_deg)
+    edges = list(G.edges)
+    coords = [G.edges[e]["coords"] for e in edges]
+    if not coords:
+        return []
+    owner = np.repeat(np.arange(len(coords)), [len(c) for c in coords])
+    step = np.diff(np.concatenate(coords), axis=0)
+    length = np.hypot(*step.T)
+    inside = (owner[1:] == owner[:-1]) & (length > 1e-9)
+    step, length, owner = step[inside], length[inside], owner[1:][inside]
+    turn = (np.diff(np.arctan2(step[:, 1], step[:, 0])) + math.pi) % (2 * math.pi) - math.pi
+    turn[owner[1:] != owner[:-1]] = 0.0  # no turn from one road into the next
+    swept = np.r_[0.0, np.cumsum(np.abs(turn))]
+    # where each step starts and ends along the roads laid end to end, a gap wider than
+    # reach_m between two roads; steps i..j-1 are compared when step j - 1 starts within
+    # reach_m of the end of step i (a corner at one vertex always counts)
+    end = np.cumsum(length) + owner * (2.0 * reach_m)
+    start = end - length
+    last = np.searchsorted(start, end + reach_m, side="right")
+    maybe = np.unique(owner[swept[last - 1] - swept > limit])
+    return [edges[k] for k in maybe if sharp_bend_at(coords[k], limit, reach_m) is not None]
+
+
+def sharp_bend_at(coords: np.ndarray, limit: float, reach_m: float) -> float | None:
+    """Where (metres along) the polyline first turns by more than ``limit`` radians within
+    ``reach_m`` metres: the middle between the two steps that differ most; None if nowhere."""
+    step = np.diff(coords, axis=0)
+    length = np.hypot(*step.T)
+    step, length = step[length > 1e-9], length[length > 1e-9]
+    heading = np.unwrap(np.arctan2(step[:, 1], step[:, 0]))
+    if len(heading) < 2:
+        return None
+    end = np.cumsum(length)
+    last = np.searchsorted(end - length, end + reach_m, side="right")
+    swept = np.r_[0.0, np.cumsum(np.abs(np.diff(heading)))]  # an upper bound of the change
+    for i in np.flatnonzero(swept[last - 1] - swept > limit):
+        change = np.abs(heading[i:last[i]] - heading[i])
+        j = i + int(np.argmax(change))
+        if change[j - i] > limit:
+            return float(end[i] + end[j] - length[j]) / 2.0
+    return None
+
+
 def graph_metrics(G: nx.Graph, area_km2: float) -> dict:
     """All road-graph measures above, as one JSON-ready dict."""
     return {
@@ -132,4 +196,5 @@ def graph_metrics(G: nx.Graph, area_km2: float) -> dict:
         "crossings_without_junction": crossings_without_junction(G),
         "bearing_entropy": bearing_entropy(G),
         "orientation_order": orientation_order(G),
+        "sharp_bends": sharp_bends(G),
     }

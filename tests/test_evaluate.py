@@ -32,6 +32,7 @@ def test_grid_counts_road_nodes_and_takes_area_from_conv_boundary(grid_net):
     assert result["lcc_ratio"] == 1.0
     assert result["dead_end_ratio"] == 0.0
     assert result["crossings_without_junction"] == 0
+    assert result["sharp_bends"] == 0
     assert result["orientation_order"] == pytest.approx(1.0)
     assert result["lane_reachability"] == 1.0
 

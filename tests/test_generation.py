@@ -111,6 +111,110 @@ def test_clean_up_joins_a_wide_bend_into_one_road():
                or np.allclose(G.edges[e]["coords"][[-1, 0]], ends, atol=0.5) for e in G.edges)
 
 
+def _u_turn(radius: float) -> np.ndarray:
+    """100 m east, a half circle of ``radius`` in 36 steps, 100 m back west."""
+    a = np.linspace(-math.pi / 2, math.pi / 2, 37)
+    bend = np.c_[100.0 + radius * np.cos(a), radius * (1.0 + np.sin(a))]
+    return np.vstack([[0.0, 0.0], bend, [0.0, 2.0 * radius]])
+
+
+def test_sharp_bends_counts_roads_that_double_back_within_twelve_metres():
+    from roadweaver_sumo.metrics import sharp_bends
+    from roadweaver_sumo.roadgraph import add_road, new_road_graph
+
+    roads = {
+        "hairpin, 180° in 12.6 m": _u_turn(4.0),
+        "wide U, 180° in 94 m": _u_turn(30.0) + [0.0, 100.0],
+        "rounded right angle": _arm((0.0, 300.0), [(0.0, 50.0), (30.0, 3.0), (60.0, 3.0),
+                                                   (90.0, 50.0)]),
+        "150° at one vertex": _arm((0.0, 500.0), [(0.0, 100.0), (150.0, 100.0)]),
+    }
+    G = new_road_graph(1000, 1000)
+    for k, coords in enumerate(roads.values()):
+        G.add_node(2 * k, xy=tuple(coords[0]))
+        G.add_node(2 * k + 1, xy=tuple(coords[-1]))
+        add_road(G, 2 * k, 2 * k + 1, coords, "local")
+    assert sharp_bends(G) == 2
+    G.remove_edge(0, 1)
+    G.remove_edge(6, 7)
+    assert sharp_bends(G) == 0
+
+
+@pytest.mark.parametrize("road", [
+    # a road north and a road east joined at a node where the north one had overshot the
+    # other by a metre: 130° within a metre
+    np.array([[0.0, -60.0], [0.0, 0.0], [0.04, 0.4], [0.4, 0.0], [1.7, -1.1], [70.0, -1.1]]),
+    _arm((0.0, 0.0), [(0.0, 60.0), (133.0, 60.0)]),  # a V of 47° inside a road
+    _arm((0.0, 0.0), [(0.0, 60.0), (90.0, 0.4), (175.0, 60.0)]),  # 175° within 0.4 m
+], ids=["overshooting joint", "47 degree V", "hairpin"])
+def test_sharp_bends_left_by_the_clean_up_are_cut_across(road):
+    """Whatever made it (see the cases), a road that doubles back within 12 m is cut across
+    where its arms are 14 m apart: rounded, it turns no sharper than 120° within 12 m, and it
+    still joins the same two junctions."""
+    from roadweaver_sumo.expand.planar import cut_sharp_bends
+    from roadweaver_sumo.metrics import sharp_bends
+    from roadweaver_sumo.roadgraph import add_road, new_road_graph
+
+    G = new_road_graph(1000, 1000)
+    G.add_node(0, xy=tuple(road[0]))
+    G.add_node(1, xy=tuple(road[-1]))
+    add_road(G, 0, 1, road, "local")
+    assert sharp_bends(G) == 1
+    cut_sharp_bends(G)
+    assert sharp_bends(G) == 0
+    cut = G.edges[0, 1]["coords"]
+    assert np.allclose(cut[[0, -1]], road[[0, -1]]) or np.allclose(cut[[-1, 0]], road[[0, -1]])
+
+
+def test_a_sharp_bend_is_not_cut_across_another_road():
+    from roadweaver_sumo.expand.planar import cut_sharp_bends
+    from roadweaver_sumo.roadgraph import add_road, new_road_graph
+
+    road = _arm((0.0, 0.0), [(0.0, 60.0), (133.0, 60.0)])
+    G = new_road_graph(1000, 1000)
+    for n, xy in enumerate([road[0], road[-1], (42.0, 3.0), (50.0, 3.0)]):
+        G.add_node(n, xy=tuple(xy))
+    add_road(G, 0, 1, road, "local")
+    add_road(G, 2, 3, np.array([[42.0, 3.0], [50.0, 3.0]]), "local")  # inside the V's tip
+    cut_sharp_bends(G)
+    assert np.array_equal(G.edges[0, 1]["coords"], road)
+
+
+def _merged_road(drop_road):
+    """Junction 0 at the origin (roads west and north) absorbs node 1 at (6, 5), whose road
+    ``drop_road`` runs to node 2; the road 0-2 that the merge leaves."""
+    from roadweaver_sumo.expand.planar import merge_nodes
+    from roadweaver_sumo.roadgraph import add_road, new_road_graph
+
+    G = new_road_graph(1000, 1000)
+    for n, xy in enumerate([(0.0, 0.0), (6.0, 5.0), tuple(drop_road[-1]), (-100.0, 0.0),
+                            (0.0, 100.0)]):
+        G.add_node(n, xy=xy)
+    add_road(G, 1, 2, np.asarray(drop_road, float), "local")
+    add_road(G, 0, 3, np.array([[0.0, 0.0], [-100.0, 0.0]]), "local")
+    add_road(G, 0, 4, np.array([[0.0, 0.0], [0.0, 100.0]]), "local")
+    merge_nodes(G, 0, 1)
+    assert set(G.neighbors(0)) == {2, 3, 4}
+    coords = G.edges[0, 2]["coords"]
+    return coords if np.allclose(coords[0], 0.0) else coords[::-1]
+
+
+def test_a_merge_never_leaves_a_road_hooked_back_at_its_junction():
+    """The dropped node's road leaves it past a rounded corner, heading away from the kept
+    junction: moved onto that junction as it was, it would run 8 m out and turn back 130°
+    (a 20 km learned map had such a hook where SUMO counted a collision). It leaves the
+    junction straight towards its point 15 m out instead."""
+    road = _merged_road([[6.0, 5.0], [6.2, 4.9], [6.3, 4.6], [6.3, -160.0]])
+    assert _sharpest_turn_deg(road) < 45.0
+    assert np.allclose(road[1], [6.3, -math.sqrt(15.0**2 - 6.3**2)])
+    assert np.allclose(road[-1], [6.3, -160.0])
+
+
+def test_a_merge_keeps_the_shape_of_a_road_without_a_hook():
+    road = _merged_road([[6.0, 5.0], [20.0, 8.0], [60.0, 30.0], [200.0, 40.0]])
+    assert np.allclose(road, [[0.0, 0.0], [20.0, 8.0], [60.0, 30.0], [200.0, 40.0]])
+
+
 def test_merging_a_ring_node_keeps_the_ring_on_the_border():
     """A busy junction 11 m inside the map, joined to the perimeter ring by a short road: the
     merged junction stays on the ring. Kept where the busy one was, it bent the ring's roads

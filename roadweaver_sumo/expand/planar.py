@@ -18,6 +18,7 @@ import shapely.ops
 from scipy.spatial import cKDTree
 
 from ..compiled import F8, F8_2D_ANY, compiled
+from ..metrics import SHARP_BEND_DEG, SHARP_BEND_REACH_M, sharp_bend_at, sharp_bend_roads
 from ..roadgraph import ROAD_CLASSES, add_road, edge_coords, edge_length, new_road_graph
 from ..skeleton.model import PERIMETER_INSET
 
@@ -115,8 +116,40 @@ def merge_nodes(G: nx.Graph, keep: int, drop: int) -> None:
             old["road_class"] = higher_class(old["road_class"], data["road_class"])
             continue
         coords[0] = G.nodes[keep]["xy"]
-        add_road(G, keep, w, coords, data["road_class"])
+        add_road(G, keep, w, unhooked(coords), data["road_class"])
     G.remove_node(drop)
+
+
+#: A road moved onto the kept node of a merge leaves it towards its old first vertex, which may
+#: lie beyond the node (a rounded corner just past it): the road then turns back on itself a
+#: few metres out, a hook no lane can follow (a 20 km learned map had a junction where SUMO
+#: counted a collision). A road turning more than HOOK_TURN within HOOK_REACH metres of the node
+#: leaves it straight towards its first point HOOK_REACH metres away instead.
+HOOK_TURN = 90.0
+HOOK_REACH = 15.0
+
+
+def unhooked(coords: np.ndarray, reach: float = HOOK_REACH) -> np.ndarray:
+    """``coords`` (from the node out) with no hook at their start."""
+    step = np.diff(coords, axis=0)
+    length = np.hypot(*step.T)
+    step, start = step[length > 1e-9], (np.cumsum(length) - length)[length > 1e-9]
+    near = step[start < reach]
+    if len(near) < 2:
+        return coords
+    heading = np.unwrap(np.arctan2(near[:, 1], near[:, 0]))
+    if np.abs(heading - heading[0]).max() <= math.radians(HOOK_TURN):
+        return coords
+    away = np.hypot(*(coords - coords[0]).T)
+    far = np.flatnonzero(away >= reach)
+    if len(far) == 0:
+        return coords[[0, -1]]
+    k = int(far[0])  # coords[k - 1] lies within reach, coords[k] beyond: cut between them
+    a, d = coords[k - 1] - coords[0], coords[k] - coords[k - 1]
+    qa, qb, qc = d @ d, 2 * (a @ d), a @ a - reach**2
+    t = (-qb + math.sqrt(max(qb * qb - 4 * qa * qc, 0.0))) / (2 * qa)
+    cut = [coords[k - 1] + t * d] if t < 1.0 - 1e-9 else []
+    return np.vstack([coords[:1], *cut, coords[k:]])
 
 
 #: Roads between two junctions (degree >= 3 at both ends) shorter than this are merged into one
@@ -455,3 +488,61 @@ def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: f
         if (G.number_of_nodes(), G.number_of_edges()) == before:
             break
     smooth_bends(G)
+
+
+#: A road can still turn back on itself after the clean-up (``metrics.sharp_bends``): a sharp
+#: corner inside a skeleton road, or two roads joined at a dissolved node whose rounded ends
+#: overshoot each other by a metre. Lanes offset from such a bend fold over each other.
+#: :func:`cut_sharp_bends` cuts across each where its two arms are BEND_CHORD metres apart, so
+#: that, rounded, it turns no sharper than a bend of the metric's reach.
+BEND_CHORD = 14.0
+BEND_CUT_STEP = 2.0  # metres: the cut widens in these steps until the arms are that far apart
+
+
+def cut_sharp_bends(G: nx.Graph) -> None:
+    """Cut across every sharp bend (see ``BEND_CHORD``) unless the cut would cross a road."""
+    bent = sharp_bend_roads(G)
+    if not bent:
+        return
+    edges = sorted(G.edges)
+    tree = shapely.STRtree([shapely.LineString(G.edges[e]["coords"]) for e in edges])
+    for u, v in sorted(bent):
+        cut = round_corners(cut_across_bends(G.edges[u, v]["coords"]), 30.0, 20.0)
+        line = shapely.LineString(cut)
+        crossed = [edges[k] for k in tree.query(line, predicate="intersects")]
+        if all(_touches_only_at_shared_nodes(G, line, (u, v), e) for e in crossed):
+            G.edges[u, v]["coords"] = cut
+
+
+def cut_across_bends(coords: np.ndarray) -> np.ndarray:
+    """``coords`` with each sharp bend cut across where its arms are ``BEND_CHORD`` apart
+    (or, a bend near the end, from the end node on)."""
+    limit = math.radians(SHARP_BEND_DEG)
+    for _ in range(4):
+        centre = sharp_bend_at(coords, limit, SHARP_BEND_REACH_M)
+        if centre is None:
+            break
+        line = shapely.LineString(coords)
+        half = BEND_CUT_STEP
+        while True:
+            a, b = max(centre - half, 0.0), min(centre + half, line.length)
+            if (a == 0.0 and b == line.length) or \
+                    line.interpolate(a).distance(line.interpolate(b)) >= BEND_CHORD:
+                break
+            half += BEND_CUT_STEP
+        head = shapely.ops.substring(line, 0.0, a).coords if a > 0.0 else coords[:1]
+        tail = shapely.ops.substring(line, b, line.length).coords if b < line.length \
+            else coords[-1:]
+        coords = np.vstack([head, tail])
+    return coords
+
+
+def _touches_only_at_shared_nodes(G: nx.Graph, line, road: tuple, other: tuple) -> bool:
+    if set(road) == set(other):
+        return True
+    contact = line.intersection(shapely.LineString(G.edges[other]["coords"]))
+    shared = set(road) & set(other)
+    if shared:
+        contact = contact.difference(
+            shapely.MultiPoint([G.nodes[n]["xy"] for n in shared]).buffer(0.5))
+    return contact.is_empty

@@ -63,7 +63,7 @@ def summary_lines(result: dict) -> list[str]:
          f" {result['edges']}, lanes {result['lanes']}"),
         (f"LCC {result['lcc_ratio']:.3f}, dead ends {result['dead_end_ratio']:.3f}, cycles"
          f" {result['cycle_ratio']:.3f}, crossings without junction"
-         f" {result['crossings_without_junction']}"),
+         f" {result['crossings_without_junction']}, sharp bends {result['sharp_bends']}"),
         (f"bearing entropy {result['bearing_entropy']:.3f} nats, orientation order"
          f" {result['orientation_order']:.3f}"),
         (f"reachability: junctions {result['junction_reachability']:.4f}, lanes"

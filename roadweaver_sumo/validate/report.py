@@ -45,6 +45,7 @@ THRESHOLDS: tuple[Threshold, ...] = (
     Threshold("net.lcc_ratio", ">=", 1.0, "share of road nodes in the largest component"),
     Threshold("net.lane_reachability", ">=", 0.995, "share of lane pairs with a drivable path"),
     Threshold("net.crossings_without_junction", "<=", 0, "roads crossing without a junction"),
+    Threshold("net.sharp_bends", "<=", 0, "roads turning over 120° within 12 m"),
     Threshold("net.alignment.mean", "<=", 0.05, "mean lane-end gap at junctions (m)"),
     Threshold("simulation.arrived_ratio", ">=", 0.99, "share of vehicles that arrived"),
     Threshold("simulation.teleport_ratio", "<=", 0.01, "teleports per vehicle"),
@@ -160,7 +161,8 @@ def summary_lines(report: dict) -> list[str]:
         (
             f"net: {net['road_nodes']} road nodes ({net['density']:.1f}/km²), {net['lanes']} lanes,"
             f" LCC {net['lcc_ratio']:.3f}, dead ends {net['dead_end_ratio']:.3f},"
-            f" crossings without junction {net['crossings_without_junction']}"
+            f" crossings without junction {net['crossings_without_junction']},"
+            f" sharp bends {net['sharp_bends']}"
         ),
         (
             f"reachability: junctions {net['junction_reachability']:.4f},"
