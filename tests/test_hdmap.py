@@ -398,3 +398,19 @@ def test_junctions_planned_by_a_forked_child_give_the_same_map(monkeypatch):
         assert (lane.successors, lane.predecessors) == (other.successors, other.predecessors)
     assert {n: j.connectors for n, j in shared.junctions.items()} == {
         n: j.connectors for n, j in alone.junctions.items()}
+
+
+def test_no_left_turn_sharper_than_135_degrees_where_there_is_another_way():
+    """A local road leaves an arterial 40° from its west arm: from the west it would be a 140°
+    left turn beside the oncoming lanes (SUMO put such a left-turner's waiting point 0.7 m from
+    the oncoming lane, and a car hit it). That turn is not offered; the road is still entered
+    from the east and from every lane of the map."""
+    nodes = {0: (200, 200), 1: (50, 200), 2: (350, 200),
+             3: (200 + 150 * np.cos(np.radians(140)), 200 + 150 * np.sin(np.radians(140)))}
+    hd = build_hdmap(_graph(nodes, [(1, 0, "arterial"), (0, 2, "arterial"), (0, 3, "local")]))
+    roads = {(r.from_node, r.to_node): r.id for r in hd.roads.values()}
+    into_acute = {hd.lanes[c].predecessors[0].rsplit("_", 1)[0] + "_" + hd.lanes[c].movement
+                  for c in hd.junctions[0].connectors
+                  if hd.lanes[c].successors[0].startswith(f"r{roads[(0, 3)]}_f")}
+    assert into_acute == {f"r{roads[(0, 2)]}_b_right"}
+    assert lane_reachability(hd) == 1.0

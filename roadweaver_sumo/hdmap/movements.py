@@ -4,7 +4,8 @@ ConstructJunctionConnections: the lane-to-lane plan before any geometry is built
 Rules, right-hand traffic, lane index 0 = rightmost:
 
 * every pair (incoming direction, outgoing direction of another road) is a movement; U-turns
-  only at dead ends, where the road's own reverse is the only way on;
+  only at dead ends, where the road's own reverse is the only way on; no left turn sharper
+  than 135° where the arrival has another way on;
 * the movement closest to straight ahead is *straight* if it turns less than 50 degrees, or if
   every movement turns the same way (the road bends); the others are left or right turns;
 * straight spreads the incoming lanes over all outgoing lanes; right turns leave from the
@@ -26,6 +27,12 @@ from .geometry import end_tangent, signed_angles, start_tangent
 from .model import DIRECTIONS, HDMap
 
 STRAIGHT_MAX = np.radians(50.0)
+#: A left turn sharper than this (into a road leaving less than 45° from the arriving one) runs
+#: beside the oncoming lanes instead of across them, and SUMO puts the left-turner's waiting
+#: point within a car's width of them: at an acute priority junction of a 20 km learned map a
+#: waiting car 0.7 m from the oncoming lane's centre was hit. Such a turn is left out where
+#: the arrival has another way on (as at real acute junctions, which ban it).
+SHARP_LEFT_MAX = np.radians(135.0)
 
 Plan = list[tuple[str, str, str]]  # (incoming lane id, outgoing lane id, movement)
 
@@ -67,7 +74,10 @@ def classify(arrival: Approach, departures: list[Approach]) -> list[tuple[Approa
     labels = ["left" if t > 0 else "right" for t in turns]
     if has_straight:
         labels[k] = "straight"
-    return list(zip(others, labels, strict=True))
+    moves = list(zip(others, labels, strict=True))
+    kept = [m for m, t in zip(moves, turns, strict=True)
+            if not (m[1] == "left" and t > SHARP_LEFT_MAX)]
+    return kept or moves
 
 
 def _spread(ins: list[str], outs: list[str]) -> list[tuple[str, str]]:
