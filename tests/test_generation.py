@@ -30,6 +30,7 @@ def test_density_is_met_within_five_percent(density):
     assert abs(m["density"] - density) / density <= 0.05
     assert m["lcc_ratio"] == 1.0
     assert m["crossings_without_junction"] == 0
+    assert m["sharp_bends"] == 0
 
 
 def test_clean_up_leaves_no_short_roads_or_sharp_junctions():
@@ -643,3 +644,13 @@ def _before_reconnection(spec):
     G = build_planar_graph(roads, spec.width, spec.height)
     clean(G, MIN_EDGE, MIN_ANGLE, stub=MIN_EDGE, margin=BORDER_MARGIN, keep_largest=False)
     return G, skeleton.cost_map(), skeleton.res
+
+
+def test_a_learned_map_whose_clean_up_left_a_sharp_bend_has_none():
+    """The learned 2 km grid map (density 30, seed 0) comes out of the clean-up with one road
+    that doubles back within 12 m; the expansion's last pass cuts across it."""
+    spec = ScenarioSpec(vehicles=1, density=30, width=2000, height=2000, style="grid", seed=0,
+                        skeleton="learned")
+    m = graph_metrics(expand_skeleton(spec, make_skeleton(spec)), spec.area_km2)
+    assert m["sharp_bends"] == 0 and m["crossings_without_junction"] == 0
+    assert abs(m["density"] - 30) / 30 <= 0.05
