@@ -1,9 +1,12 @@
 """A 2-D orientation (tensor) field on a raster: the direction guide for every road we trace.
 
 A symmetric 2x2 tensor with unit trace is stored by its deviatoric part as the pair
-(a cos 2θ, a sin 2θ): θ is the major eigen-direction and ``a`` in [0, 1] the anisotropy. Sums of
-such pairs are sums of tensors, so blending fields and Gaussian smoothing stay linear (paper §III-C,
-structure tensor after Bigün & Granlund 1987).
+(a cos 2θ, a sin 2θ): θ is the major eigen-direction and ``a`` in [0, 1] the anisotropy (paper
+§III-C, structure tensor after Bigün & Granlund 1987). Roads follow either eigen-direction, so a
+field really describes a cross of two perpendicular axes. Fields are therefore averaged (Gaussian
+smoothing, blending) as crosses, by their angle 4θ: averaged as tensors (2θ), the two streets of a
+crossroads cancel, and two nearly perpendicular ones average to the diagonal between them, which
+the fill roads of a grid block then followed.
 """
 
 from __future__ import annotations
@@ -71,6 +74,22 @@ def field_grid(width: float, height: float, res: float) -> tuple[np.ndarray, np.
     return np.meshgrid(xs, ys)
 
 
+def to_cross(f: TensorField) -> tuple[np.ndarray, np.ndarray]:
+    """(a cos 4θ, a sin 4θ): the field as a cross, where θ and θ + 90° are the same (double
+    angle formulas: no trigonometry over the whole raster)."""
+    a = np.maximum(np.hypot(f.c2, f.s2), 1e-300)
+    return (f.c2 * f.c2 - f.s2 * f.s2) / a, 2.0 * f.c2 * f.s2 / a
+
+
+def from_cross(c4: np.ndarray, s4: np.ndarray, res: float) -> TensorField:
+    """The field of an averaged cross: its axis θ (either, roads follow both) and strength a,
+    as (a cos 2θ, a sin 2θ) with 2θ half of 4θ in (-π, π] (half-angle formulas)."""
+    a = np.hypot(c4, s4)
+    c2 = np.sqrt(np.maximum(0.5 * a * (a + c4), 0.0))
+    s2 = np.copysign(np.sqrt(np.maximum(0.5 * a * (a - c4), 0.0)), s4)
+    return TensorField(c2, s2, res)
+
+
 def from_angles(theta: np.ndarray, weight: np.ndarray, res: float) -> TensorField:
     """Field whose major direction is ``theta`` with anisotropy ``weight`` (clipped to 1)."""
     w = np.clip(weight, 0.0, 1.0)
@@ -85,7 +104,8 @@ def structure_tensor(
     sigma: float,
     radius: float,
 ) -> tuple[TensorField, np.ndarray]:
-    """Paper Eq. (1)-(2): T(p) = Σ g_i t_i t_iᵀ / Σ g_i over skeleton samples within ``radius``.
+    """Paper Eq. (1)-(2): T(p) = Σ g_i t_i t_iᵀ / Σ g_i over skeleton samples within ``radius``,
+    averaged as crosses (module docstring): by 4φ rather than 2φ.
 
     The Gaussian-weighted sums are computed for every cell at once by splatting the samples onto
     the raster and filtering with a truncated Gaussian (``truncate = radius / sigma`` realises the
@@ -99,21 +119,18 @@ def structure_tensor(
     acc_c = np.zeros(shape)
     acc_s = np.zeros(shape)
     acc_w = np.zeros(shape)
-    np.add.at(acc_c, (i, j), np.cos(2 * phi))
-    np.add.at(acc_s, (i, j), np.sin(2 * phi))
+    np.add.at(acc_c, (i, j), np.cos(4 * phi))
+    np.add.at(acc_s, (i, j), np.sin(4 * phi))
     np.add.at(acc_w, (i, j), 1.0)
     opts = {"sigma": sigma / res, "truncate": radius / sigma, "mode": "constant"}
     with ThreadPoolExecutor(2) as pool:  # scipy's filters release the GIL: two cores
         sum_c, sum_s, sum_w = pool.map(partial(gaussian_filter, **opts), (acc_c, acc_s, acc_w))
     safe = np.where(sum_w > 1e-12, sum_w, 1.0)
-    return TensorField(sum_c / safe, sum_s / safe, res), sum_w
+    return from_cross(sum_c / safe, sum_s / safe, res), sum_w
 
 
 def blend(primary: TensorField, weight: np.ndarray, fallback: TensorField) -> TensorField:
-    """``weight``·primary + (1 − weight)·fallback, cell by cell (weights in [0, 1])."""
+    """``weight``·primary + (1 − weight)·fallback, cell by cell (weights in [0, 1]), as crosses."""
     w = np.clip(weight, 0.0, 1.0)
-    return TensorField(
-        w * primary.c2 + (1 - w) * fallback.c2,
-        w * primary.s2 + (1 - w) * fallback.s2,
-        primary.res,
-    )
+    (pc, ps), (fc, fs) = to_cross(primary), to_cross(fallback)
+    return from_cross(w * pc + (1 - w) * fc, w * ps + (1 - w) * fs, primary.res)

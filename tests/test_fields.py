@@ -17,7 +17,7 @@ from roadweaver_sumo.streamlines import (
     follow_field,
     trace,
 )
-from roadweaver_sumo.tensor_field import TensorField, from_angles, structure_tensor
+from roadweaver_sumo.tensor_field import TensorField, blend, from_angles, structure_tensor
 
 
 def uniform_field(theta: float, shape=(50, 50), res=10.0) -> TensorField:
@@ -37,7 +37,28 @@ def test_tangents_of_opposite_sign_do_not_cancel():
     points = np.array([[100.0, 100.0], [100.0, 100.0]])
     tangents = np.array([[0.0, 1.0], [0.0, -1.0]])
     field, _ = structure_tensor(points, tangents, (20, 20), 10.0, sigma=30, radius=90)
-    assert abs(abs(field.major(100, 110)[1]) - 1.0) < 1e-6
+    assert np.allclose(np.abs(choose_axis(field, (100, 110), np.array([0.1, 1.0]))), [0, 1])
+    assert math.isclose(field.anisotropy(100, 110), 1.0)
+
+
+def test_streets_of_a_skewed_crossroads_average_to_their_own_axes_not_the_diagonal():
+    """Two streets crossing at 88°: averaged as tensors (2θ) they nearly cancel to the
+    diagonal between them (-44°), and a fill road in that block ran diagonally."""
+    skew = math.radians(88.0)
+    points = np.array([[100.0, 100.0], [100.0, 100.0]])
+    tangents = np.array([[1.0, 0.0], [math.cos(skew), math.sin(skew)]])
+    field, _ = structure_tensor(points, tangents, (20, 20), 10.0, sigma=30, radius=90)
+    for wanted in ([1.0, 0.1], [0.1, 1.0]):
+        axis = choose_axis(field, (100, 110), np.array(wanted))
+        assert math.degrees(math.acos(abs(axis @ np.array(wanted) / np.hypot(*wanted)))) < 8.0
+    assert field.anisotropy(100, 110) > 0.99
+
+
+def test_blending_a_grid_with_its_own_turned_copy_keeps_the_grid():
+    horizontal, vertical = uniform_field(0.0), uniform_field(math.pi / 2)
+    mixed = blend(horizontal, np.full((50, 50), 0.5), vertical)
+    assert math.isclose(mixed.anisotropy(250, 250), 1.0)
+    assert np.allclose(np.abs(choose_axis(mixed, (250, 250), np.array([1.0, 0.2]))), [1, 0])
 
 
 def test_clamp_limits_the_turn():

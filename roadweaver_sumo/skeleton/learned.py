@@ -23,7 +23,7 @@ from ..data.condition import style_preset
 from ..data.field import field_to_graph
 from ..roadgraph import edge_coords, edge_length
 from ..spec import STAGE_SKELETON, ScenarioSpec
-from ..tensor_field import TensorField, blend, field_grid
+from ..tensor_field import TensorField, blend, field_grid, from_cross, to_cross
 from .model import Skeleton, perimeter
 from .procedural import FIELD_RES, basis_field
 
@@ -87,15 +87,16 @@ def _resample(channel: np.ndarray, res: float, width: float, height: float) -> n
 
 
 def _basis_field(F: np.ndarray, res: float, spec: ScenarioSpec) -> TensorField:
-    """The decoded orientation channels, smoothed, where the field has roads; the style's
-    procedural basis field where it has none (there the decoded direction is noise, and roads
-    the expansion fills in would wander)."""
-    c2 = _resample(gaussian_filter(F[..., 1], BASIS_SIGMA_M / res), res, spec.width, spec.height)
-    s2 = _resample(gaussian_filter(F[..., 2], BASIS_SIGMA_M / res), res, spec.width, spec.height)
-    mag = np.hypot(c2, s2)
+    """The decoded orientation channels, smoothed as crosses (``tensor_field``), where the field
+    has roads; the style's procedural basis field where it has none (there the decoded
+    direction is noise, and roads the expansion fills in would wander)."""
+    c4, s4 = to_cross(TensorField(F[..., 1], F[..., 2], res))
+    c4, s4 = (_resample(gaussian_filter(ch, BASIS_SIGMA_M / res), res, spec.width, spec.height)
+              for ch in (c4, s4))
+    mag = np.hypot(c4, s4)
     full = max(float(np.quantile(mag, 0.9)), 1e-6)
     unit = 1.0 / np.maximum(mag, 1e-9)
-    learned = TensorField(c2 * unit, s2 * unit, FIELD_RES)
+    learned = from_cross(c4 * unit, s4 * unit, FIELD_RES)
     return blend(learned, mag / full, basis_field(spec, spec.rng(STAGE_SKELETON)))
 
 
