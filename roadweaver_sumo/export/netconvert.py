@@ -15,6 +15,7 @@ from string import Template
 
 from ..errors import RoadweaverError
 from ..sumo_tools import binary, run, strip_generated_comment
+from .waiting_points import crowded_connections, wait_at_stop_line
 
 TEMPLATE_PACKAGE = "roadweaver_sumo.netconvert_templates"
 CONFIG_NAME = "netconvert.netccfg"
@@ -89,5 +90,10 @@ def run_netconvert(out_dir: Path, template: str = "urban") -> Path:
     _run(out_dir)
     if not net.is_file():
         raise RoadweaverError(f"netconvert wrote no {NET_NAME} in {out_dir}")
+    crowded = crowded_connections(net)
+    if crowded:  # once more, with those cars waiting at the stop line (waiting_points.py)
+        wait_at_stop_line(out_dir / PLAIN_FILES["connection_files"], crowded)
+        net.unlink()
+        _run(out_dir)
     strip_generated_comment(net)
     return net
