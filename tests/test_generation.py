@@ -654,3 +654,41 @@ def test_a_learned_map_whose_clean_up_left_a_sharp_bend_has_none():
     m = graph_metrics(expand_skeleton(spec, make_skeleton(spec)), spec.area_km2)
     assert m["sharp_bends"] == 0 and m["crossings_without_junction"] == 0
     assert abs(m["density"] - 30) / 30 <= 0.05
+
+
+def test_a_block_smaller_than_a_junction_loses_its_least_road():
+    """A 146 m² triangle beside a larger block (the learned organic map of the test below):
+    its local road goes, the collector sides stay; the larger block is left alone."""
+    from roadweaver_sumo.expand.planar import open_tiny_blocks
+    from roadweaver_sumo.roadgraph import add_road, new_road_graph
+
+    G = new_road_graph(1000, 1000)
+    for n, xy in enumerate([(100.0, 100.0), (100.0, 126.0), (111.2, 111.0), (40.0, 100.0),
+                            (40.0, 126.0)]):
+        G.add_node(n, xy=xy)
+    for u, v, cls in [(0, 1, "collector"), (0, 2, "local"), (2, 1, "collector"),
+                      (0, 3, "local"), (3, 4, "local"), (4, 1, "local")]:
+        add_road(G, u, v, np.array([G.nodes[u]["xy"], G.nodes[v]["xy"]]), cls)
+    assert open_tiny_blocks(G, 500.0) == 1
+    assert not G.has_edge(0, 2) and G.has_edge(2, 1) and G.has_edge(0, 3)
+    assert open_tiny_blocks(G, 500.0) == 0
+
+
+def test_no_learned_map_keeps_a_block_smaller_than_a_junction(tmp_path):
+    """Learned organic map, density 10, seed 0: a 146 m² triangle by the ring road left roads
+    0 m long between overlapping junctions in the SUMO net; cars locked up there (a teleport)
+    and one hit another. Its road is removed, and the scenario passes."""
+    import json
+
+    from roadweaver_sumo.cli import main
+    from roadweaver_sumo.expand.fill import faces
+    from roadweaver_sumo.expand.planar import MIN_BLOCK_AREA
+
+    spec = ScenarioSpec(density=10, vehicles=500, seed=0, style="organic", skeleton="learned")
+    G = expand_skeleton(spec, make_skeleton(spec))
+    assert min(f.area for f in faces(G)) >= MIN_BLOCK_AREA
+    out = tmp_path / "s"
+    assert main(["make-scenario", "--density", "10", "--vehicles", "500", "--seed", "0",
+                 "--style", "organic", "--out", str(out)]) == 0
+    simulation = json.loads((out / "report.json").read_text())["simulation"]
+    assert (simulation["collisions"], simulation["teleports_total"]) == (0, 0)

@@ -12,7 +12,7 @@ from ..skeleton.procedural import block_size
 from ..spec import STAGE_FILL, STAGE_GROWTH, ScenarioSpec
 from .fill import fill_to_density, prune_to_density
 from .growth import grow_collectors, skeleton_tensor_field
-from .planar import build_planar_graph, clean, cut_sharp_bends
+from .planar import MIN_BLOCK_AREA, build_planar_graph, clean, cut_sharp_bends
 from .reconnect import link_components, reconnect_dangles
 
 MIN_EDGE = 12.0  # metres: shorter roads are merged into a junction
@@ -49,7 +49,8 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
         fill_to_density(G, target, field, rng, MIN_EDGE, MIN_ANGLE, stub=stub)
         prune_to_density(G, target, stub)
         G = _renode(G, [])
-        clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN)
+        clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN,
+              min_block_area=MIN_BLOCK_AREA)
         if abs(road_node_count(G) - target) <= max(1, DENSITY_TOLERANCE * target):
             break
     cut_sharp_bends(G)
