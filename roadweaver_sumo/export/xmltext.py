@@ -112,5 +112,8 @@ def write(root: Element, path: Path, indent: str = "  ", declaration: str = DECL
     """Write ``root`` after ``declaration`` with a final newline (lxml ``write(pretty_print=True,
     xml_declaration=True, encoding="UTF-8")`` output for the default arguments)."""
     path = Path(path)
-    path.write_text(declaration + to_text(root, indent) + "\n", encoding="utf-8")
+    with path.open("w", encoding="utf-8") as file:  # in parts: the text may be 100 MB
+        file.write(declaration)
+        file.write(to_text(root, indent))
+        file.write("\n")
     return path
