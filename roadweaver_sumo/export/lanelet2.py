@@ -24,18 +24,21 @@ at the same origin reads them back within a millimetre on maps of a few kilometr
 
 from __future__ import annotations
 
+import bisect
 import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
 from shapely.geometry import LineString
 
 from ..compiled import B1, B1_1D, I8, I8_1D, U1_1D, U1_1D_CONST, compiled
 from ..hdmap.model import HDMap, Lane
 from ..scenario.xmlfile import DECLARATION
-from .xmltext import Block, Element, PlacedBlock, attr_text, leaf, sub, write
+from .xmltext import Element, PlacedBlock, attr_text, leaf, sub, write
 
 GENERATOR = "roadweaver-sumo"
 LANE_TAG = "roadweaver:lane"  # the HD map lane id of a lanelet, for loaders and debugging
@@ -167,11 +170,14 @@ def _segment_crossings(a, b, starts, ends):
 
 @dataclass
 class _Way:
-    """One boundary way: points in driving direction, line tags, and (later) node ids."""
+    """One boundary way: points in driving direction, line tags, and (later) node ids: its
+    first and last node (shared with other ways) and the consecutive ids of the nodes between."""
 
     points: np.ndarray
     tags: tuple
-    nodes: list[int] = field(default_factory=list)
+    first: int = 0
+    inner: range = range(0)
+    last: int = 0
 
 
 @dataclass
@@ -245,94 +251,76 @@ def _clean(polylines: list) -> np.ndarray:
     return (bad == 0) & ((sizes < 4) | (turning < 0.99 * math.pi)) & (sizes >= 2)
 
 
-def _end_point(plan: _Plan, lane_id: str, side: str, at_end: bool) -> tuple:
-    """The way end point ``(way key, 0 = first / 1 = last point)`` where a lane side starts or
-    ends."""
-    return plan.slots[(lane_id, side)], int(at_end)
-
-
-class _UnionFind:
-    """Union-find over the integers ``0..n-1`` (way end points: ``2 * way + end``)."""
-
-    def __init__(self, n: int) -> None:
-        self.parent = list(range(n))
-
-    def find(self, item: int) -> int:
-        parent = self.parent
-        while parent[item] != item:
-            parent[item] = parent[parent[item]]  # path halving
-            item = parent[item]
-        return item
-
-    def union(self, a: int, b: int) -> None:
-        ra, rb = self.find(a), self.find(b)
-        if ra != rb:
-            self.parent[rb] = ra
-
-
 class _Ids:
-    """One id counter for nodes, ways and relations, with the node coordinates: single nodes
-    (shared way ends, signals) by id, the inner nodes of ways as blocks of consecutive ids."""
+    """One id counter for nodes, ways and relations, with the node coordinates: nodes take
+    their ids in blocks of consecutive ids (all the ways' nodes, then each signal's)."""
 
     def __init__(self) -> None:
         self.next = 1
-        self.node_xy: dict[int, tuple[float, float]] = {}
-        self.blocks: list[tuple[int, np.ndarray]] = []  # (first id, points)
+        self.firsts: list[int] = []  # the first id of each block
+        self.blocks: list[np.ndarray] = []  # its points
 
     def new(self) -> int:
         self.next += 1
         return self.next - 1
 
-    def node(self, xy) -> int:
-        nid = self.new()
-        self.node_xy[nid] = (float(xy[0]), float(xy[1]))
-        return nid
+    def nodes(self, points: np.ndarray) -> int:
+        """The first of new consecutive node ids for ``points``."""
+        self.firsts.append(self.next)
+        self.blocks.append(np.array(points, float).reshape(-1, 2))
+        self.next += len(self.blocks[-1])
+        return self.firsts[-1]
 
-    def nodes(self, points: np.ndarray) -> list[int]:
-        """New consecutive node ids for ``points`` (as :meth:`node` one by one, but faster)."""
-        first = self.next
-        self.next += len(points)
-        self.blocks.append((first, np.array(points, float).reshape(-1, 2)))
-        return list(range(first, self.next))
+    def node(self, xy) -> int:
+        return self.nodes([xy])
+
+    def xy(self, nid: int) -> np.ndarray:
+        k = bisect.bisect_right(self.firsts, nid) - 1
+        return self.blocks[k][nid - self.firsts[k]]
 
     def all_nodes(self) -> tuple[np.ndarray, np.ndarray]:
-        """Every node id in increasing order, and its coordinates."""
-        ids = [np.fromiter(self.node_xy, int, len(self.node_xy))]
-        xy = [np.array(list(self.node_xy.values()), float).reshape(-1, 2)]
-        ids += [np.arange(first, first + len(points)) for first, points in self.blocks]
-        xy += [points for _, points in self.blocks]
-        ids, xy = np.concatenate(ids), np.concatenate(xy)
-        order = np.argsort(ids, kind="stable")
-        return ids[order], xy[order]
+        """Every node id in increasing order (blocks are made in id order), and its
+        coordinates."""
+        ids = [np.arange(first, first + len(points))
+               for first, points in zip(self.firsts, self.blocks, strict=True)]
+        return np.concatenate(ids), np.concatenate(self.blocks)
 
 
 def _assign_nodes(hd: HDMap, plan: _Plan, ids: _Ids) -> None:
     """Give every way its node ids; end points joined by a successor link share one node, placed
-    where the first way (road lanes come first) has it."""
+    where the first way (road lanes come first) has it.
+
+    Ids follow the ways' points in order, an end point taking a new id only where its node is
+    first met, so the nodes are the ways' points less those end points: found for the whole
+    map at once rather than point by point."""
+    ways = list(plan.ways.values())
     way_index = {key: k for k, key in enumerate(plan.ways)}
     slot = {lane_side: way_index[key] for lane_side, key in plan.slots.items()}
-    joints = _UnionFind(2 * len(way_index))
-    for lane in _lane_order(hd):
-        for succ in lane.successors:
-            for side in ("left", "right"):  # the end of this lane's way, the start of succ's
-                joints.union(2 * slot[(lane.id, side)] + 1, 2 * slot[(succ, side)])
-    shared: dict = {}
-
-    def end_node(point: int, xy) -> int:
-        root = joints.find(point)
-        if root not in shared:
-            shared[root] = ids.node(xy)
-        return shared[root]
-
-    for k, way in enumerate(plan.ways.values()):
-        first = end_node(2 * k, way.points[0])
-        inner = ids.nodes(way.points[1:-1])
-        way.nodes = [first, *inner, end_node(2 * k + 1, way.points[-1])]
+    joints = [(2 * slot[(lane.id, side)] + 1, 2 * slot[(succ, side)])  # end of one, start of succ
+              for lane in hd.lanes.values() for succ in lane.successors
+              for side in ("left", "right")]
+    a, b = np.array(joints, int).reshape(-1, 2).T
+    n = 2 * len(ways)  # way end points: 2 * way + (0 = first, 1 = last)
+    _, joint = connected_components(csr_matrix((np.ones(len(a)), (a, b)), shape=(n, n)))
+    _, met = np.unique(joint, return_index=True)  # where each joint is first met
+    # A way untangled to one point (a lane under a millimetre) still has two end points.
+    points = [way.points if len(way.points) > 1 else way.points[[0, 0]] for way in ways]
+    sizes = np.array([len(p) for p in points])
+    ends = np.stack([np.cumsum(sizes) - sizes, np.cumsum(sizes) - 1], axis=1).ravel()
+    kept = np.ones(sizes.sum(), bool)
+    kept[ends] = False
+    kept[ends[met]] = True
+    first = ids.nodes(np.concatenate(points)[kept])
+    before = np.cumsum(kept) - kept  # kept points before each point
+    end_ids = (first + before[ends[met]])[joint].reshape(-1, 2).tolist()
+    inner_starts = (first + before[ends[0::2] + 1]).tolist()
+    for way, (start, end), inner, size in zip(ways, end_ids, inner_starts, sizes.tolist(),
+                                              strict=True):
+        way.first, way.inner, way.last = start, range(inner, inner + size - 2), end
 
 
 def _lane_end_node(plan: _Plan, lane_id: str, side: str) -> int:
-    key, end = _end_point(plan, lane_id, side, True)
-    return plan.ways[key].nodes[-end]  # end 0 -> nodes[0], end 1 -> nodes[-1]
+    return plan.ways[plan.slots[(lane_id, side)]].last
 
 
 @dataclass
@@ -358,9 +346,9 @@ def _signals(hd: HDMap, plan: _Plan, ids: _Ids) -> tuple[list[_Signal], dict[int
                 continue
             line = [_lane_end_node(plan, lanes[0], "right")]
             line += [_lane_end_node(plan, lane, "left") for lane in lanes]
-            across = np.subtract(ids.node_xy[line[-1]], ids.node_xy[line[0]])  # right to left
+            across = np.subtract(ids.xy(line[-1]), ids.xy(line[0]))  # right to left
             shift = TRAFFIC_LIGHT_OFFSET_M * np.array([across[1], -across[0]]) / np.hypot(*across)
-            light = [ids.node(np.add(ids.node_xy[n], shift)) for n in (line[0], line[-1])]
+            light = [ids.node(np.add(ids.xy(n), shift)) for n in (line[0], line[-1])]
             stop_id, light_id = ids.new(), ids.new()
             ways[stop_id] = (line, (("type", "stop_line"),))
             ways[light_id] = (light, (("type", "traffic_light"), ("subtype", "red_yellow_green")))
@@ -375,42 +363,38 @@ def speed_limit_tag(speed_mps: float) -> str:
     return f"{round(speed_mps * 3.6, 2):g}"
 
 
-def _element(tag: str, eid: int, children: list[str]) -> Block:
-    """An element with OSM's id attributes and childless children, as one finished block
-    (ways and relations number tens of thousands, each with a handful of children)."""
-    return Block(f'<{tag} id="{eid}" visible="true" version="1">\n{INDENT}'
-                 + f"\n{INDENT}".join(children) + f"\n</{tag}>")
+_INNER = "\n" + 2 * INDENT  # between the children of a way or relation
+_BETWEEN_REFS = f'"/>{_INNER}<nd ref="'
 
 
-@functools.lru_cache(maxsize=64)
-def _tag_lines(tags: tuple) -> list[str]:
-    """``<tag>`` texts of a tags tuple; way tags repeat thousands of times."""
-    return [_tag_line(key, value) for key, value in tags]
+def _element(tag: str, eid: int, children: str) -> str:
+    """An element with OSM's id attributes and its children's finished lines (joined by
+    ``_INNER``), as text to be placed one indent deep: ways and relations number tens of
+    thousands, each with a handful of children, so each is formatted in one go."""
+    return f'<{tag} id="{eid}" visible="true" version="1">{_INNER}{children}\n{INDENT}</{tag}>'
 
 
 @functools.lru_cache(maxsize=4096)
+def _tag_lines(tags: tuple) -> str:
+    """``<tag>`` lines of a tags tuple, cached: way tags repeat thousands of times, and lanelet
+    tags other than the lane id take few values."""
+    return _INNER.join(_tag_line(key, value) for key, value in tags)
+
+
 def _tag_line(key: str, value: str) -> str:
-    """One ``<tag>`` text, cached: lanelet tags other than the lane id take few values."""
-    return _uncached_tag_line(key, value)
-
-
-def _uncached_tag_line(key: str, value: str) -> str:
     return leaf("tag", attr_text((("k", key), ("v", value))))
 
 
-def _add_way(root, wid: int, nodes: list[int], tags) -> None:
-    root.append(_element("way", wid, [f'<nd ref="{nid}"/>' for nid in nodes] + _tag_lines(tags)))
+def _way(wid: int, nodes, tags: tuple) -> str:
+    refs = _BETWEEN_REFS.join(map(str, nodes))
+    return _element("way", wid, f'<nd ref="{refs}"/>{_INNER}{_tag_lines(tags)}')
 
 
-def _add_relation(root, rid: int, members: list[tuple[str, int, str]], tags) -> None:
-    children = [f'<member type="{kind}" ref="{ref}" role="{role}"/>'  # plain words: no escaping
-                for kind, ref, role in members]
-    if tags and tags[0] == ("type", "lanelet"):  # tags that repeat, then the lane's own id
-        children += [_tag_line(key, value) for key, value in tags[:-1]]
-        children.append(_uncached_tag_line(*tags[-1]))
-    else:
-        children += _tag_lines(tags)
-    root.append(_element("relation", rid, children))
+def _relation(rid: int, members: list[tuple[str, int, str]], tags: str) -> str:
+    """A relation with its members and its ``<tag>`` lines ``tags``."""
+    lines = [f'<member type="{kind}" ref="{ref}" role="{role}"/>'  # plain words: no escaping
+             for kind, ref, role in members]
+    return _element("relation", rid, _INNER.join([*lines, tags]))
 
 
 def _degrees(value: float) -> str:
@@ -529,9 +513,11 @@ def _add_bounds(root, hd: HDMap) -> None:
                                    ("maxlat", _degrees(lat.max())), ("maxlon", _degrees(lon.max())))))
 
 
-def _lanelet_tags(lane: Lane) -> tuple:
-    return (("type", "lanelet"), ("subtype", "road"), ("location", "urban"), ("one_way", "yes"),
-            ("speed_limit", speed_limit_tag(lane.speed)), (LANE_TAG, lane.id))
+def _lanelet_tags(lane: Lane) -> str:
+    """The ``<tag>`` lines of a lane's lanelet: the cached ones, then the lane's own id."""
+    common = (("type", "lanelet"), ("subtype", "road"), ("location", "urban"),
+              ("one_way", "yes"), ("speed_limit", speed_limit_tag(lane.speed)))
+    return _tag_lines(common) + _INNER + _tag_line(LANE_TAG, lane.id)
 
 
 def lanelet2_tree(hd: HDMap) -> Element:
@@ -548,20 +534,23 @@ def lanelet2_tree(hd: HDMap) -> Element:
     root = Element("osm", attr_text((("version", "0.6"), ("generator", GENERATOR))))
     _add_bounds(root, hd)
     _add_nodes(root, hd, ids)
-    ways = {way_ids[key]: (way.nodes, way.tags) for key, way in plan.ways.items()} | signal_ways
-    for wid in sorted(ways):
-        _add_way(root, wid, *ways[wid])
-    relations = {s.id: ([("way", s.light, "refers"), ("way", s.stop_line, "ref_line")],
-                        (("type", "regulatory_element"), ("subtype", "traffic_light")))
-                 for s in signals}
+    # Ways and then relations in id order, the order their ids were given in.
+    ways = [_way(way_ids[key], [way.first, *way.inner, way.last], way.tags)
+            for key, way in plan.ways.items()]
+    ways += [_way(wid, nodes, tags) for wid, (nodes, tags) in signal_ways.items()]
+    relations = [_relation(s.id, [("way", s.light, "refers"), ("way", s.stop_line, "ref_line")],
+                           _tag_lines((("type", "regulatory_element"),
+                                       ("subtype", "traffic_light"))))
+                 for s in signals]
     for lane in sorted(hd.lanes.values(), key=lambda lane: lane.id):
         members = [("way", way_ids[plan.slots[(lane.id, side)]], side)
                    for side in ("left", "right")]
         if lane.id in regulatory:
             members.append(("relation", regulatory[lane.id], "regulatory_element"))
-        relations[ids.new()] = (members, _lanelet_tags(lane))
-    for rid in sorted(relations):
-        _add_relation(root, rid, *relations[rid])
+        relations.append(_relation(ids.new(), members, _lanelet_tags(lane)))
+    for elements in (ways, relations):
+        if elements:  # the root's children: lines one indent deep
+            root.append(PlacedBlock(f"\n{INDENT}".join(elements)))
     return root
 
 
