@@ -147,17 +147,24 @@ def _header(hd: HDMap) -> Element:
 
 
 def _plan_view(parent: Element, pieces: list[Piece]) -> None:
-    """``<planView>``: one ``<geometry>`` per piece (chapter "Geometry")."""
-    plan = sub(parent, "planView")
-    for p in pieces:  # formatted inline: the hottest element of the file (all fields floats)
-        geometry = sub(plan, "geometry", _no_minus_zero(_GEOMETRY % p[1:6]))
+    """``<planView>``: one ``<geometry>`` per piece (chapter "Geometry"), as one finished
+    block in the file's two-space indent (geometries are the file's most numerous element)."""
+    if not pieces:
+        parent.children.append("<planView/>")
+        return
+    lines = ["<planView>"]
+    for p in pieces:  # formatted inline: all fields are floats
+        lines.append(f"  <geometry{_no_minus_zero(_GEOMETRY % p[1:6])}>")
         if p.kind == "line":
-            geometry.children.append("<line/>")
+            lines.append("    <line/>")
         elif p.kind == "arc":
-            geometry.children.append(f'<arc curvature="{_num(p.curvature, CURVATURE_DECIMALS)}"/>')
+            lines.append(f'    <arc curvature="{_num(p.curvature, CURVATURE_DECIMALS)}"/>')
         else:
             coeffs = _no_minus_zero(_PARAM_POLY3 % (*p.u, *p.v))
-            geometry.children.append(f'<paramPoly3{coeffs} pRange="normalized"/>')
+            lines.append(f'    <paramPoly3{coeffs} pRange="normalized"/>')
+        lines.append("  </geometry>")
+    lines.append("</planView>")
+    parent.children.append(Block("\n".join(lines)))
 
 
 def _no_minus_zero(attrs: str) -> str:
