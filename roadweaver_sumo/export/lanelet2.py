@@ -38,7 +38,7 @@ from shapely.geometry import LineString
 from ..compiled import B1, B1_1D, I8, I8_1D, U1_1D, U1_1D_CONST, compiled
 from ..hdmap.model import HDMap, Lane
 from ..scenario.xmlfile import DECLARATION
-from .xmltext import Element, PlacedBlock, attr_text, leaf, sub, write
+from .xmltext import Element, PlacedBlock, attr_text, escape, leaf, sub, write
 
 GENERATOR = "roadweaver-sumo"
 LANE_TAG = "roadweaver:lane"  # the HD map lane id of a lanelet, for loaders and debugging
@@ -514,10 +514,11 @@ def _add_bounds(root, hd: HDMap) -> None:
 
 
 def _lanelet_tags(lane: Lane) -> str:
-    """The ``<tag>`` lines of a lane's lanelet: the cached ones, then the lane's own id."""
+    """The ``<tag>`` lines of a lane's lanelet: the cached ones, then the lane's own id
+    (formatted inline: ``LANE_TAG`` is a plain word, only the id needs escaping)."""
     common = (("type", "lanelet"), ("subtype", "road"), ("location", "urban"),
               ("one_way", "yes"), ("speed_limit", speed_limit_tag(lane.speed)))
-    return _tag_lines(common) + _INNER + _tag_line(LANE_TAG, lane.id)
+    return f'{_tag_lines(common)}{_INNER}<tag k="{LANE_TAG}" v="{escape(lane.id)}"/>'
 
 
 def lanelet2_tree(hd: HDMap) -> Element:
