@@ -291,8 +291,8 @@ def _assign_nodes(hd: HDMap, plan: _Plan, ids: _Ids) -> None:
     where the first way (road lanes come first) has it.
 
     Ids follow the ways' points in order, an end point taking a new id only where its node is
-    first met, so the nodes are the ways' points less those end points: found for the whole
-    map at once rather than point by point."""
+    first met, so the nodes are the ways' points less the end points met before: found for
+    the whole map at once rather than point by point."""
     ways = list(plan.ways.values())
     way_index = {key: k for k, key in enumerate(plan.ways)}
     slot = {lane_side: way_index[key] for lane_side, key in plan.slots.items()}
