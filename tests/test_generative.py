@@ -182,6 +182,23 @@ def test_inpainting_keeps_known_tokens(tiny_models):
     assert out.min() >= 0 and out.max() < gen.sampler.cfg.codebook_size
 
 
+@pytest.mark.skipif(not SHIPPED_MASKGIT.is_file(), reason="weights not trained yet")
+def test_trunk_rows_are_bitwise_those_of_the_full_trunk():
+    """Features of some rows only (the last block computing just those) are the full trunk's
+    rows to the bit, for any number of rows."""
+    gen = Generator.load()
+    rng = np.random.default_rng(0)
+    n, G = gen.grid ** 2, gen.sampler.cfg.groups
+    row = gen.sampler.condition(np.zeros(11, np.float32), guidance=1.0)[0]
+    for m in (0, 1, 15, 16, 17, 45, 64, 255, 256):
+        tokens = rng.integers(0, gen.sampler.cfg.codebook_size, (n, G))
+        masked = np.zeros(n, dtype=bool)
+        masked[rng.choice(n, m, replace=False)] = True
+        rows = np.flatnonzero(masked)
+        assert np.array_equal(gen.sampler.trunk(tokens, masked, row, rows),
+                              gen.sampler.trunk(tokens, masked, row)[rows])
+
+
 def test_window_starts_cover_the_canvas_with_half_overlap():
     assert window_starts(16, 16) == [0]
     assert window_starts(10, 16) == [0]

@@ -26,6 +26,11 @@ from .settings import MaskGITConfig, VQVAEConfig
 F32 = np.float32
 LAYER_NORM_EPS = 1e-5
 _SQRT_HALF = 1.0 / math.sqrt(2.0)
+#: A row of a matrix product comes out of OpenBLAS bitwise the same whatever the other rows,
+#: except in products of very few rows (other kernels, other summation order): features of
+#: fewer rows than this are taken from the full trunk, so that asking for some rows never
+#: changes their bits (tests compare).
+MIN_ROWS = 16
 
 
 class TorchUniform:
@@ -150,37 +155,48 @@ class MaskGITSampler:
                  parts(_linear(c, w["final_mod.weight"], w["final_mod.bias"]), 2))
                 for c in rows]
 
-    def trunk(self, tokens: np.ndarray, masked: np.ndarray, mods) -> np.ndarray:
+    def trunk(self, tokens: np.ndarray, masked: np.ndarray, mods, rows=None) -> np.ndarray:
         """Features (n, dim) of the tokens (n, G) with the ``masked`` (n,) positions hidden,
-        under one condition's AdaLN terms ``mods``."""
+        under one condition's AdaLN terms ``mods``; with ``rows`` (indices), only those
+        positions' features. Every block attends over all positions, but after the last
+        block's keys and values only the rows asked for matter, so that block computes only
+        them (the other rows are most of a window that is mostly context)."""
         block_mods, (scale, shift) = mods
         x = sum(emb[tokens[:, g]] for g, emb in enumerate(self.token_embed))
         x = np.where(masked[:, None], self.w["mask_embed"], x)
         x = (x + self.pos[:len(tokens)]).astype(F32)
         h = np.empty_like(x)
-        for block, (s1, b1, g1, s2, b2, g2) in zip(self.blocks, block_mods, strict=True):
+        subset = rows is not None and len(rows) >= MIN_ROWS
+        for i, (block, (s1, b1, g1, s2, b2, g2)) in enumerate(zip(self.blocks, block_mods,
+                                                                   strict=True)):
+            queries = rows if subset and i == len(self.blocks) - 1 else None
             _modulated_norm(x, s1, b1, h)
-            x = x + g1 * self._attention(h, block)
+            attended = self._attention(h, block, queries)
+            if queries is not None:
+                x, h = x[queries], h[:len(queries)]
+            x = x + g1 * attended
             _modulated_norm(x, s2, b2, h)
             hidden = h @ block["mlp.0.weight"] + block["mlp.0.bias"]
             _gelu_inplace(hidden.reshape(-1))
             x = x + g2 * (hidden @ block["mlp.3.weight"] + block["mlp.3.bias"])
         _modulated_norm(x, scale, shift, h)
-        return h
+        return h if subset or rows is None else h[rows]
 
-    def _attention(self, h: np.ndarray, block: dict) -> np.ndarray:
+    def _attention(self, h: np.ndarray, block: dict, queries=None) -> np.ndarray:
+        """Self-attention of the rows of h, or of the rows ``queries`` only (over all of h)."""
         n, d = h.shape
         heads = self.cfg.heads
         qkv = (h @ block["attn.in_proj_weight"] + block["attn.in_proj_bias"])
         qkv = qkv.reshape(n, 3, heads, d // heads).transpose(1, 2, 0, 3)  # (3, heads, n, dh)
-        q = qkv[0] * F32(1.0 / math.sqrt(d // heads))
-        scores = q @ np.ascontiguousarray(qkv[1].transpose(0, 2, 1))  # (heads, n, n)
+        q = qkv[0] if queries is None else qkv[0][:, queries]
+        q = q * F32(1.0 / math.sqrt(d // heads))
+        scores = q @ np.ascontiguousarray(qkv[1].transpose(0, 2, 1))  # (heads, m, n)
         _softmax_inplace(scores)
-        out = (scores @ qkv[2]).transpose(1, 0, 2).reshape(n, d)
+        out = (scores @ qkv[2]).transpose(1, 0, 2).reshape(q.shape[1], d)
         return out @ block["attn.out_proj.weight"] + block["attn.out_proj.bias"]
 
     def _masked_features(self, tokens: np.ndarray, masked: np.ndarray, mods) -> np.ndarray:
-        return self.trunk(tokens, masked, mods)[masked]
+        return self.trunk(tokens, masked, mods, np.flatnonzero(masked))
 
     def group_logits(self, h: np.ndarray, g: int, earlier: np.ndarray) -> np.ndarray:
         """Logits (m, K) of group ``g`` given the tokens (m, g) of the groups before it."""
