@@ -46,6 +46,27 @@ class TorchUniform:
         return (raw & 0xFFFFFF).astype(F32) * F32(2.0**-24)
 
 
+class DrawnUniform:
+    """Numbers drawn beforehand from a :class:`TorchUniform`, handed out in order by the same
+    ``rand``: a window given the stretch of the stream it would have drawn in raster order can
+    be sampled out of that order."""
+
+    def __init__(self, values: np.ndarray):
+        self.values, self.used = values, 0
+
+    def rand(self, *shape: int) -> np.ndarray:
+        size = math.prod(shape)
+        out = self.values[self.used:self.used + size].reshape(shape)
+        self.used += size
+        return out
+
+
+def still_masked(unknown: int, t: int, steps: int) -> int:
+    """How many of a window's ``unknown`` positions stay masked after decoding step ``t``: the
+    share cos(π (t + 1) / 2T)."""
+    return int(np.floor(F32(unknown) * F32(math.cos(0.5 * math.pi * (t + 1) / steps))))
+
+
 def _linear(x: np.ndarray, weight: np.ndarray, bias: np.ndarray) -> np.ndarray:
     return x @ weight.T + bias
 
@@ -217,7 +238,7 @@ class MaskGITSampler:
         n = self.cfg.grid ** 2
         tokens = np.where(known_mask[:, None], known, 0)
         masked = ~known_mask
-        unknown0 = F32(masked.sum())
+        unknown = int(masked.sum())
         for t in range(steps):
             features = partial(self._masked_features, tokens, masked)
             h_cond, *h_free = map_rows(features, mods)
@@ -225,7 +246,7 @@ class MaskGITSampler:
             choice, logp = self._sample_masked(h_cond, h_free, rng, guidance, temperature)
             conf = np.zeros(n, F32)
             conf[masked] = logp
-            keep_masked = int(np.floor(unknown0 * F32(math.cos(0.5 * math.pi * (t + 1) / steps))))
+            keep_masked = still_masked(unknown, t, steps)
             anneal = 1.0 - (t + 1) / steps
             uniform = np.clip(rng.rand(n), F32(1e-9), F32(1 - 1e-9))
             noise = -np.log(-np.log(uniform))
@@ -239,6 +260,17 @@ class MaskGITSampler:
             tokens = np.where(newly[:, None], sampled, tokens)
             masked = still
         return tokens
+
+    def draw_count(self, unknown: int, steps: int) -> int:
+        """How many random numbers :meth:`sample` draws for a window with ``unknown`` positions
+        to fill: per step, one per masked position and group, then one per position. (The
+        scores of masked positions are finite, so exactly :func:`still_masked` of them stay
+        masked after each step.)"""
+        total, masked = 0, unknown
+        for t in range(steps):
+            total += self.cfg.groups * masked + self.cfg.grid ** 2
+            masked = still_masked(unknown, t, steps)
+        return total
 
     def _sample_masked(self, h_cond, h_free, rng: TorchUniform, guidance: float,
                        temperature: float):
