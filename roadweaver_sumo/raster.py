@@ -16,23 +16,24 @@ def sample_polyline(line: np.ndarray, spacing: float) -> np.ndarray:
 def rasterise_polylines(lines, shape: tuple[int, int], res: float) -> np.ndarray:
     """Boolean mask of the raster cells (``res`` metres each) that the polylines pass through."""
     mask = np.zeros(shape, dtype=bool)
-    i, j = _cells(lines, shape, res)
+    i, j = polyline_cells(lines, shape, res)
     mask[i, j] = True
     return mask
 
 
-def rasterise_window(lines, shape: tuple[int, int], res: float, window) -> np.ndarray:
-    """``rasterise_polylines(lines, shape, res)[i0:i1, j0:j1]`` for ``window`` = (i0, i1, j0,
-    j1), without the whole map's raster (one per dead end, each searching a small window)."""
+def rasterise_window(cells, window) -> np.ndarray:
+    """The window (i0, i1, j0, j1) of the mask whose True cells are ``cells`` (rows, columns
+    from :func:`polyline_cells`), without the whole map's raster (one per dead end, each
+    searching a small window)."""
     i0, i1, j0, j1 = window
     mask = np.zeros((i1 - i0, j1 - j0), dtype=bool)
-    i, j = _cells(lines, shape, res)
+    i, j = cells
     inside = (i >= i0) & (i < i1) & (j >= j0) & (j < j1)
     mask[i[inside] - i0, j[inside] - j0] = True
     return mask
 
 
-def _cells(lines, shape: tuple[int, int], res: float) -> tuple[np.ndarray, np.ndarray]:
+def polyline_cells(lines, shape: tuple[int, int], res: float) -> tuple[np.ndarray, np.ndarray]:
     """Row and column of a point every half cell along the polylines, clipped to the raster."""
     lines = [line for line in lines if len(line) >= 2]
     if not lines:

@@ -16,7 +16,7 @@ from shapely.ops import nearest_points
 from skimage.graph import MCP_Geometric
 
 from ..forked import map_shared
-from ..raster import rasterise_polylines, rasterise_window
+from ..raster import polyline_cells, rasterise_polylines, rasterise_window
 from .planar import components_main_first
 
 #: Fewer dead ends are searched in this process alone: a fork costs more than they take.
@@ -42,17 +42,22 @@ def reconnect_dangles(
     lines = [shapely.LineString(G.edges[e]["coords"]) for e in edges]
     tree = shapely.STRtree(lines)
     position = {e: k for k, e in enumerate(edges)}
-    road_mask = _rasterise_edges(G, cost.shape, res)
+    # Each road's cells once: a junction's roads are excluded from several dead ends' searches.
+    cells = [polyline_cells([G.edges[e]["coords"]], cost.shape, res) for e in edges]
+    road_mask = np.zeros(cost.shape, dtype=bool)
+    for i, j in cells:
+        road_mask[i, j] = True
 
     def link(n):
         (w,) = G.neighbors(n)
         # The roads at the dead end's own junction are not targets: a link onto them would
         # make a loop back to where the road started, not a new connection.
-        base = [(w, x) for x in G.neighbors(w)]
+        skip = {position.get((w, x), position.get((x, w))) for x in G.neighbors(w)}
+        exclude = (np.concatenate([cells[k][0] for k in skip]),
+                   np.concatenate([cells[k][1] for k in skip]))
         path = _cheapest_link(np.asarray(G.nodes[n]["xy"]), cost, road_mask, res, radius,
-                              exclude=[G.edges[e]["coords"] for e in base])
+                              exclude)
         if path is not None:
-            skip = {position.get(e, position.get(e[::-1])) for e in base}
             path = _snap_end(path, lines, tree, skip)
         return path
 
@@ -91,19 +96,18 @@ def link_components(G: nx.Graph, cost: np.ndarray, res: float, radius: float) ->
     return links
 
 
-def _cheapest_link(p, cost, targets, res, radius, exclude=()):
-    """The cheapest path from ``p`` to a ``targets`` cell (not a cell of the ``exclude``
-    polylines) within ``radius``; the masks are only read inside that window (one search per
-    dead end)."""
+def _cheapest_link(p, cost, targets, res, radius, exclude=None):
+    """The cheapest path from ``p`` to a ``targets`` cell (not one of the ``exclude`` cells,
+    rows and columns) within ``radius``; the masks are only read inside that window (one
+    search per dead end)."""
     ny, nx_ = cost.shape
     r = int(radius / res)
     ci, cj = int(p[1] / res), int(p[0] / res)
     i0, i1 = max(ci - r, 0), min(ci + r + 1, ny)
     j0, j1 = max(cj - r, 0), min(cj + r + 1, nx_)
     window_targets = targets[i0:i1, j0:j1]
-    if len(exclude):
-        window_targets = window_targets & ~rasterise_window(exclude, cost.shape, res,
-                                                            (i0, i1, j0, j1))
+    if exclude is not None:
+        window_targets = window_targets & ~rasterise_window(exclude, (i0, i1, j0, j1))
     if not window_targets.any():
         return None
     mcp = MCP_Geometric(cost[i0:i1, j0:j1])
@@ -123,10 +127,6 @@ def _cheapest_link(p, cost, targets, res, radius, exclude=()):
     if line.length > radius * 1.5 or line.length < res:
         return None
     return np.asarray(line.coords)
-
-
-def _rasterise_edges(G: nx.Graph, shape, res: float) -> np.ndarray:
-    return rasterise_polylines([G.edges[e]["coords"] for e in G.edges], shape, res)
 
 
 def _snap_end(path: np.ndarray, lines: list, tree, skip: set) -> np.ndarray | None:
