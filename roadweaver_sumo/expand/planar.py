@@ -53,25 +53,23 @@ def build_planar_graph(roads: list[tuple[np.ndarray, str]], width: float, height
     # its middle, from one bulk query against their segments (a tree of whole polylines would
     # measure every piece against each map-long arterial, vertex by vertex).
     mids = shapely.line_interpolate_point(pieces, 0.5, normalized=True)
-    segments = shapely.linestrings(np.concatenate(
-        [np.stack([c[:-1], c[1:]], axis=1) for c, _, _ in kept]))
-    owner = np.repeat(np.arange(len(kept)), [len(c) - 1 for c, _, _ in kept])
+    points = np.concatenate([c for c, _, _ in kept])
+    point_owner = np.repeat(np.arange(len(kept)), [len(c) for c, _, _ in kept])
+    inside = point_owner[1:] == point_owner[:-1]  # steps between two polylines are not segments
+    segments = shapely.linestrings(np.stack([points[:-1], points[1:]], axis=1)[inside])
+    owner = point_owner[1:][inside]
     which, near = shapely.STRtree(segments).query(mids, predicate="dwithin", distance=0.05)
     classes = ["local"] * len(pieces)
     for k, line in zip(which.tolist(), owner[near].tolist(), strict=True):
         classes[k] = higher_class(classes[k], kept[line][1])
-    keys = {}
-    for c in coords:
-        for pt in (c[0], c[-1]):
-            keys.setdefault((round(pt[0], 2), round(pt[1], 2)), None)
+    ends = [((round(c[0][0], 2), round(c[0][1], 2)), (round(c[-1][0], 2), round(c[-1][1], 2)))
+            for c in coords]
+    keys = dict.fromkeys(key for pair in ends for key in pair)
     for nid, key in enumerate(sorted(keys)):
         keys[key] = nid
         G.add_node(nid, xy=key)
     for k in order:
-        c = coords[k]
-        u = keys[(round(c[0][0], 2), round(c[0][1], 2))]
-        v = keys[(round(c[-1][0], 2), round(c[-1][1], 2))]
-        add_piece(G, u, v, np.asarray(c), classes[k])
+        add_piece(G, keys[ends[k][0]], keys[ends[k][1]], coords[k], classes[k])
     return G
 
 
@@ -82,7 +80,7 @@ def _coords_of(lines: np.ndarray) -> list[list]:
     return [part.tolist() for part in np.split(xy, cuts)]
 
 
-def add_piece(G: nx.Graph, u: int, v: int, coords: np.ndarray, cls: str) -> None:
+def add_piece(G: nx.Graph, u: int, v: int, coords, cls: str) -> None:
     """Add a road u-v. A second road between the same nodes gets a shape node in its middle, a
     closed loop two, so the graph stays simple (SUMO and the lane builder need distinct node
     pairs)."""
