@@ -8,6 +8,7 @@ too sharp, stubs that run off the map, and fragments outside the largest compone
 
 from __future__ import annotations
 
+import heapq
 import math
 
 import networkx as nx
@@ -317,32 +318,52 @@ def _point_along_steps(c, probe):
     return c[-1, 0], c[-1, 1]
 
 
-def remove_sharp_angles(G: nx.Graph, min_angle_deg: float, cache: dict | None = None) -> int:
-    """Drop the minor road of every pair meeting at a node at less than ``min_angle_deg``.
+def remove_sharp_angles(G: nx.Graph, min_angle_deg: float, cache: dict | None = None) -> None:
+    """Drop the minor road of every pair meeting at a node at less than ``min_angle_deg``,
+    sweeping the nodes in order until none is left.
 
     Degree-2 nodes count too, up to ``HAIRPIN_ANGLE``: two roads left in a V (a third road at
     the node removed) would otherwise be joined into one road that doubles back on itself, a
     hairpin whose lanes fold over each other (a learned map had one 3 m from its own junction,
-    and a car hit)."""
-    removed = 0
+    and a car hit).
+
+    Whether a node has a pair to drop depends on its own roads alone, so a sweep visits only
+    the nodes that lost a road since they were last looked at: every other node would find
+    nothing again."""
     limit = math.radians(min_angle_deg)
     hairpin = math.radians(max(min_angle_deg, HAIRPIN_ANGLE))
-    for n in sorted(G.nodes):
-        if n not in G or G.degree(n) < 2:
-            continue
-        if G.degree(n) == 2 and _meeting_angle(G, n, cache) < hairpin:
-            G.remove_edge(*min(((n, w) for w in G.neighbors(n)), key=lambda e: _edge_weight(G, *e)))
-            removed += 1
-            continue
-        angles = departure_angles(G, n, cache=cache)
-        for k, (a1, w1) in enumerate(angles):
-            a2, w2 = angles[(k + 1) % len(angles)]
-            gap = (a2 - a1) % (2 * math.pi)
-            if gap < limit and G.has_edge(n, w1) and G.has_edge(n, w2):
-                G.remove_edge(*min(((n, w1), (n, w2)), key=lambda e: _edge_weight(G, *e)))
-                removed += 1
-                break
-    return removed
+    todo = sorted(G.nodes)  # a sorted list is a heap
+    while todo:
+        queued, again = set(todo), set()
+        while todo:
+            n = heapq.heappop(todo)
+            road = _sharp_pair_road(G, n, limit, hairpin, cache)
+            if road is None:
+                continue
+            G.remove_edge(*road)
+            for m in road:
+                if m <= n:
+                    again.add(m)  # already visited in this sweep: the next one
+                elif m not in queued:
+                    heapq.heappush(todo, m)
+                    queued.add(m)
+        todo = sorted(again)
+
+
+def _sharp_pair_road(G: nx.Graph, n: int, limit: float, hairpin: float,
+                     cache: dict | None) -> tuple | None:
+    """The road :func:`remove_sharp_angles` drops at ``n`` (the minor road of its first pair
+    of roads closer than ``limit``, or of its two roads closer than ``hairpin``), or None."""
+    if G.degree(n) < 2:
+        return None
+    if G.degree(n) == 2 and _meeting_angle(G, n, cache) < hairpin:
+        return min(((n, w) for w in G.neighbors(n)), key=lambda e: _edge_weight(G, *e))
+    angles = departure_angles(G, n, cache=cache)
+    for k, (a1, w1) in enumerate(angles):
+        a2, w2 = angles[(k + 1) % len(angles)]
+        if (a2 - a1) % (2 * math.pi) < limit:
+            return min(((n, w1), (n, w2)), key=lambda e: _edge_weight(G, *e))
+    return None
 
 
 def _edge_weight(G, u, v):
@@ -479,8 +500,7 @@ def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: f
         before = (G.number_of_nodes(), G.number_of_edges())
         merge_close_nodes(G, min_edge * 0.8)
         contract_short_edges(G, min_edge)
-        while remove_sharp_angles(G, min_angle, bearings):
-            pass
+        remove_sharp_angles(G, min_angle, bearings)
         prune_stubs(G, stub, margin)
         if keep_largest:
             keep_largest_component(G)
