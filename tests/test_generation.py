@@ -531,7 +531,7 @@ def test_a_loop_fragment_without_dead_ends_is_linked_too():
 def test_component_filter_keeps_the_ring_over_a_bigger_cluster():
     """Blocks close against the perimeter ring: the filter keeps the ring's component even
     when a cluster of reconnected fragments has more junctions."""
-    from roadweaver_sumo.expand.planar import keep_largest_component, on_perimeter
+    from roadweaver_sumo.expand.planar import _ring_nodes, keep_largest_component, on_perimeter
     from roadweaver_sumo.skeleton.model import perimeter
 
     cluster = [np.array([[400.0 + 50 * k, 300.0], [400.0 + 50 * k, 600.0]]) for k in range(4)]
@@ -539,6 +539,7 @@ def test_component_filter_keeps_the_ring_over_a_bigger_cluster():
     roads = [(perimeter(1000, 1000), "collector")] + [(c, "arterial") for c in cluster]
     G = build_planar_graph(roads, 1000, 1000)
     ring_nodes = {n for u, v in G.edges if on_perimeter(G, u, v) for n in (u, v)}
+    assert _ring_nodes(G) == ring_nodes  # the vectorised pass the filter uses
     assert len(ring_nodes) < G.number_of_nodes() - len(ring_nodes)  # the cluster is bigger
     keep_largest_component(G)
     assert set(G.nodes) == ring_nodes

@@ -377,10 +377,27 @@ def _edge_weight(G, u, v):
 def on_perimeter(G: nx.Graph, u: int, v: int, tolerance: float = 1.0) -> bool:
     """Whether road u-v runs along the perimeter ring road (``skeleton.model.perimeter``)."""
     c = np.asarray(G.edges[u, v]["coords"], dtype=float)
+    return bool((_perimeter_offset(G, c) < tolerance).all())
+
+
+def _perimeter_offset(G: nx.Graph, c: np.ndarray) -> np.ndarray:
+    """Each point's distance from the nearest side of the perimeter ring's rectangle."""
     lo, hx, hy = PERIMETER_INSET, G.graph["width"] - PERIMETER_INSET, G.graph["height"] - PERIMETER_INSET
-    off = np.minimum.reduce([np.abs(c[:, 0] - lo), np.abs(c[:, 1] - lo),
-                             np.abs(c[:, 0] - hx), np.abs(c[:, 1] - hy)])
-    return bool((off < tolerance).all())
+    return np.minimum.reduce([np.abs(c[:, 0] - lo), np.abs(c[:, 1] - lo),
+                              np.abs(c[:, 0] - hx), np.abs(c[:, 1] - hy)])
+
+
+def _ring_nodes(G: nx.Graph, tolerance: float = 1.0) -> set:
+    """The nodes of every road :func:`on_perimeter`, all roads measured in one vectorised
+    pass (one call per road cost 80 ms on a learned 10 km map)."""
+    edges = list(G.edges)
+    if not edges:
+        return set()
+    coords = [np.asarray(G.edges[e]["coords"], dtype=float) for e in edges]
+    owner = np.repeat(np.arange(len(edges)), [len(c) for c in coords])
+    away = ~(_perimeter_offset(G, np.concatenate(coords)) < tolerance)
+    along = np.bincount(owner[away], minlength=len(edges)) == 0
+    return {n for e, hit in zip(edges, along.tolist(), strict=True) if hit for n in e}
 
 
 def prune_stubs(G: nx.Graph, max_length: float, margin: float) -> None:
@@ -420,7 +437,7 @@ def components_main_first(G: nx.Graph) -> list[set]:
     comps = list(nx.connected_components(G))
     if len(comps) <= 1:
         return comps
-    ring = {n for u, v in G.edges if on_perimeter(G, u, v) for n in (u, v)}
+    ring = _ring_nodes(G)
     return sorted(comps, key=lambda c: (len(c & ring), len(c), -min(c)), reverse=True)
 
 
