@@ -232,16 +232,15 @@ def _clean(polylines: list) -> np.ndarray:
     than half a turn in all (so it cannot cross itself), has no sub-millimetre step and never
     turns by more than 90 degrees: one vectorised pass over all boundaries of the map instead
     of a dozen small numpy calls per boundary."""
-    sizes = np.array([len(p) for p in polylines])
-    pts = np.concatenate([np.asarray(p, float).reshape(-1, 2) for p in polylines])
+    sizes = np.fromiter(map(len, polylines), int, len(polylines))
+    pts = np.concatenate(polylines, dtype=float)  # (n, 2) each: no per-polyline conversion
     owner = np.repeat(np.arange(len(polylines)), sizes)
     step = np.diff(pts, axis=0)
     inside = owner[1:] == owner[:-1]  # steps between two polylines are not steps
     step, step_owner = step[inside], owner[1:][inside]
     short = np.hypot(step[:, 0], step[:, 1]) <= 1.001 * MIN_STEP_M  # margin: untangle's hypot
     pair = step_owner[1:] == step_owner[:-1]
-    a, b = step[:-1][pair], step[1:][pair]
-    fold = a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] < 0
+    fold = (step[:-1, 0] * step[1:, 0] + step[:-1, 1] * step[1:, 1] < 0)[pair]
     heading = np.arctan2(step[:, 1], step[:, 0])
     turn = np.abs(np.angle(np.exp(1j * (heading[1:] - heading[:-1])[pair])))
     n = len(polylines)
