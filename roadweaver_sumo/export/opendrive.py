@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..compiled import B1_2D, I8, I8_2D, U1_1D, compiled
 from ..hdmap.geometry import cut
 from ..hdmap.model import DIRECTIONS, HDMap, Lane, Road
 from .opendrive_geometry import DECIMALS, Piece, bezier_pieces, fillet_pieces
@@ -52,12 +53,14 @@ def opendrive_tree(hd: HDMap) -> Element:
     signals, controllers = _traffic_lights(hd, plans)
     root = Element("OpenDRIVE")
     root.append(_header(hd))
-    for rid, plan in plans.items():
-        root.append(_road(hd, hd.roads[rid], plan, signals.get(rid, [])))
+    for (rid, plan), view in zip(plans.items(), _plan_views(list(plans.values())), strict=True):
+        root.append(_road(hd, hd.roads[rid], plan, view, signals.get(rid, [])))
     connectors = hd.connectors()
     pieces = bezier_pieces(np.array([lane.bezier for lane in connectors]).reshape(-1, 4, 2))
-    for lane, piece in zip(connectors, pieces, strict=True):
-        root.append(_connecting_road(hd, lane, connecting[lane.id], piece))
+    geometries = _rows(_GEOMETRY, [p[1:6] for p in pieces])
+    curves = _rows(_PARAM_POLY3, [(*p.u, *p.v) for p in pieces])
+    for lane, piece, geometry, curve in zip(connectors, pieces, geometries, curves, strict=True):
+        root.append(_connecting_road(hd, lane, connecting[lane.id], piece, geometry, curve))
     root.extend(controllers)
     for jid in sorted(hd.junctions):
         if hd.junctions[jid].connectors:
@@ -93,6 +96,63 @@ def _num(x: float, decimals: int = DECIMALS) -> str:
     return text[1:] if text[0] == "-" and not text.strip("-0.") else text
 
 
+def _rows(template: str, values, decimals: int = DECIMALS) -> list[str]:
+    """``template`` with its ``{}`` filled by :func:`_num` of each row of ``values`` (m, k),
+    for many rows at once: a compiled writer of each value's fixed-point units (Python's
+    formatting of the file's million numbers took ~0.3 s). The product ``|value| 10^decimals``
+    is within half a float spacing of the exact one, so it rounds as the exact value does
+    unless its fraction is that close to one half: rows with such a value, or one beyond 2^52
+    units or not finite, are left to :func:`_num`."""
+    values = np.asarray(values, float).reshape(len(values), template.count("{}"))
+    with np.errstate(over="ignore", invalid="ignore"):  # not finite: left to _num
+        scaled = np.abs(values) * 10.0**decimals
+        whole = np.floor(scaled)
+        frac = scaled - whole
+        python = ~(np.abs(frac - 0.5) > scaled * 2.0**-52) | ~(scaled < 2.0**52)
+        units = np.where(python, 0.0, whole + (frac > 0.5)).astype(np.int64)
+    marked = np.frombuffer(template.replace("{}", "\0").encode(), np.uint8).copy()
+    text = _fixed_rows(marked, units, np.signbit(values) & (units > 0), decimals)
+    rows = str(text.data, "ascii").split("\n") if len(values) else []
+    for k in np.flatnonzero(python.any(axis=1)).tolist():
+        rows[k] = template.format(*(_num(v, decimals) for v in values[k].tolist()))
+    return rows
+
+
+@compiled(U1_1D(U1_1D, I8_2D, B1_2D, I8))
+def _fixed_rows(template, units, negative, decimals):  # pragma: no cover - compiled
+    """One line per row: ``template`` with each 0 byte replaced by the row's next value,
+    ``units`` 10^-decimals in fixed-point digits, a ``-`` where ``negative``."""
+    out = np.empty(len(units) * (len(template) + 1 + units.shape[1] * (decimals + 24)), np.uint8)
+    digits = np.empty(decimals + 24, np.uint8)
+    pos = 0
+    for row in range(len(units)):
+        if row:
+            out[pos] = 10  # newline
+            pos += 1
+        col = 0
+        for byte in template:
+            if byte:
+                out[pos] = byte
+                pos += 1
+                continue
+            if negative[row, col]:
+                out[pos] = 45  # "-"
+                pos += 1
+            value, n = units[row, col], 0
+            while n <= decimals or value:  # at least one digit before the point
+                digits[n] = 48 + value % 10
+                value //= 10
+                n += 1
+            for i in range(n - 1, -1, -1):
+                if i == decimals - 1:
+                    out[pos] = 46  # "."
+                    pos += 1
+                out[pos] = digits[i]
+                pos += 1
+            col += 1
+    return out[:pos]
+
+
 def _attrs(attrs: dict) -> str:
     """Attribute text: floats with fixed decimals, a trailing ``_`` dropped (``from_``)."""
     parts = []
@@ -108,9 +168,9 @@ def _attrs(attrs: dict) -> str:
 
 
 _ZERO = _num(0.0)
-_MINUS_ZERO, _PLUS_ZERO = f'"-{_ZERO}"', f'"{_ZERO}"'
-_GEOMETRY = "".join(f' {key}="%.{DECIMALS}f"' for key in ("s", "x", "y", "hdg", "length"))
-_PARAM_POLY3 = "".join(f' {c}{axis}="%.{DECIMALS}f"' for axis in "UV" for c in "abcd")
+_GEOMETRY = "<geometry" + "".join(f' {key}="{{}}"' for key in ("s", "x", "y", "hdg", "length")) + ">"
+_PARAM_POLY3 = ("<paramPoly3" + "".join(f' {c}{axis}="{{}}"' for axis in "UV" for c in "abcd")
+                + ' pRange="normalized"/>')
 _MARKS = {kind: leaf("roadMark", _attrs({"sOffset": 0.0, "type": kind, "weight": "standard",
                                          "color": "standard", "width": MARK_WIDTH,
                                          "laneChange": "both" if kind == "broken" else "none"}))
@@ -146,31 +206,24 @@ def _header(hd: HDMap) -> Element:
     return header
 
 
-def _plan_view(parent: Element, pieces: list[Piece]) -> None:
-    """``<planView>``: one ``<geometry>`` per piece (chapter "Geometry"), as one finished
-    block in the file's two-space indent (geometries are the file's most numerous element)."""
-    if not pieces:
-        parent.children.append("<planView/>")
-        return
-    lines = ["<planView>"]
-    for p in pieces:  # formatted inline: all fields are floats
-        lines.append(f"  <geometry{_no_minus_zero(_GEOMETRY % p[1:6])}>")
-        if p.kind == "line":
-            lines.append("    <line/>")
-        elif p.kind == "arc":
-            lines.append(f'    <arc curvature="{_num(p.curvature, CURVATURE_DECIMALS)}"/>')
-        else:
-            coeffs = _no_minus_zero(_PARAM_POLY3 % (*p.u, *p.v))
-            lines.append(f'    <paramPoly3{coeffs} pRange="normalized"/>')
-        lines.append("  </geometry>")
-    lines.append("</planView>")
-    parent.children.append(Block("\n".join(lines)))
-
-
-def _no_minus_zero(attrs: str) -> str:
-    """Attribute text from a %-template of ``DECIMALS`` floats, with ``-0`` written as ``0``
-    (what :func:`_num` does per number, for a whole element at once)."""
-    return attrs.replace(_MINUS_ZERO, _PLUS_ZERO) if _MINUS_ZERO in attrs else attrs
+def _plan_views(plans: list[list[Piece]]) -> list[str]:
+    """Each road's ``<planView>``: one ``<geometry>`` per line or arc piece (chapter
+    "Geometry"), as one finished block in the file's two-space indent; the numbers of all
+    roads are formatted at once (geometries are the file's most numerous element)."""
+    pieces = [p for plan in plans for p in plan]
+    geometries = iter(_rows("  " + _GEOMETRY, [p[1:6] for p in pieces]))
+    arcs = iter(_rows('    <arc curvature="{}"/>',
+                      [p.curvature for p in pieces if p.kind == "arc"], CURVATURE_DECIMALS))
+    views = []
+    for plan in plans:
+        lines = ["<planView>"]
+        for p in plan:
+            lines.append(next(geometries))
+            lines.append(next(arcs) if p.kind == "arc" else "    <line/>")
+            lines.append("  </geometry>")
+        lines.append("</planView>")
+        views.append(Block("\n".join(lines)) if plan else "<planView/>")
+    return views
 
 
 def _road_element(rid: int, name: str, junction: int, pieces: list[Piece]) -> Element:
@@ -180,7 +233,7 @@ def _road_element(rid: int, name: str, junction: int, pieces: list[Piece]) -> El
                            f' length="{_num(length)}" rule="RHT"')
 
 
-def _road(hd: HDMap, road: Road, pieces: list[Piece], signals: list) -> Element:
+def _road(hd: HDMap, road: Road, pieces: list[Piece], plan_view: str, signals: list) -> Element:
     """A road between two junctions: its two driving directions as right and left lanes."""
     elem = _road_element(road.id, f"r{road.id}", -1, pieces)
     ends = [(tag, node) for tag, node in (("predecessor", road.from_node),
@@ -191,7 +244,7 @@ def _road(hd: HDMap, road: Road, pieces: list[Piece], signals: list) -> Element:
         for tag, node in ends:
             _leaf(link, tag, elementType="junction", elementId=node)
     _road_type(elem, road.road_class, road.speed)
-    _plan_view(elem, pieces)
+    elem.children.append(plan_view)
     section = _sub(_sub(elem, "lanes"), "laneSection", s=0.0)
     left = _sub(section, "left")
     for lane_id in road.lanes("b"):  # outermost (id n) first: descending ids
@@ -242,9 +295,11 @@ def _contact(lane: Lane, arriving: bool) -> str:
     return "end" if (lane.direction == "f") == arriving else "start"
 
 
-def _connecting_road(hd: HDMap, lane: Lane, rid: int, piece: Piece) -> Block:
+def _connecting_road(hd: HDMap, lane: Lane, rid: int, piece: Piece, geometry: str,
+                     curve: str) -> Block:
     """A connector as a one-lane connecting road inside its junction (chapter "Junctions":
-    connecting roads) along ``piece``, linked to its incoming and outgoing road and lanes.
+    connecting roads) along ``piece`` (its ``<geometry>`` and ``<paramPoly3>`` lines
+    ``geometry`` and ``curve``), linked to its incoming and outgoing road and lanes.
 
     Written as one finished block of text (the most numerous road of a map: building it
     element by element cost a third of the file's time), in the file's two-space indent."""
@@ -264,9 +319,8 @@ def _connecting_road(hd: HDMap, lane: Lane, rid: int, piece: Piece) -> Block:
         f'    <speed max="{_num(float(lane.speed))}" unit="m/s"/>\n'
         f'  </type>\n'
         f'  <planView>\n'
-        f'    <geometry{_no_minus_zero(_GEOMETRY % piece[1:6])}>\n'
-        f'      <paramPoly3{_no_minus_zero(_PARAM_POLY3 % (*piece.u, *piece.v))}'
-        f' pRange="normalized"/>\n'
+        f'    {geometry}\n'
+        f'      {curve}\n'
         f'    </geometry>\n'
         f'  </planView>\n'
         f'  <lanes>\n'
