@@ -27,7 +27,7 @@ import numpy as np
 from ..compiled import B1_2D, I8, I8_2D, U1_1D, compiled
 from ..hdmap.geometry import cut
 from ..hdmap.model import DIRECTIONS, HDMap, Lane, Road
-from .opendrive_geometry import DECIMALS, Piece, bezier_pieces, fillet_pieces
+from .opendrive_geometry import DECIMALS, Piece, bezier_pieces, fillet_plans
 from .xmltext import Block, Element, cdata, escape, leaf, sub, write
 
 CURVATURE_DECIMALS = 15  # an arc's end moves by length^2 / 2 times the curvature's rounding
@@ -48,7 +48,9 @@ def write_opendrive(hd: HDMap, path: Path) -> Path:
 def opendrive_tree(hd: HDMap) -> Element:
     """The ``<OpenDRIVE>`` element of ``hd``: header, roads, connecting roads, controllers,
     junctions, in that (schema) order."""
-    plans = {rid: fillet_pieces(reference_line(hd.roads[rid])) for rid in sorted(hd.roads)}
+    rids = sorted(hd.roads)
+    plans = dict(zip(rids, fillet_plans([reference_line(hd.roads[rid]) for rid in rids]),
+                     strict=True))
     connecting = connecting_road_ids(hd)
     signals, controllers = _traffic_lights(hd, plans)
     root = Element("OpenDRIVE")
