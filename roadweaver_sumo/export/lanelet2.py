@@ -73,6 +73,15 @@ _DELTA = np.array([2 * _N - 2 * _N**2 / 3 - 2 * _N**3 + 116 * _N**4 / 45,
                    56 * _N**3 / 15 - 136 * _N**4 / 35,
                    4279 * _N**4 / 630])
 _J2 = 2 * np.arange(1, 5)
+_ALPHA_J, _BETA_J, _DELTA_J = (list(zip(c.tolist(), _J2.tolist(), strict=True))
+                               for c in (_ALPHA, _BETA, _DELTA))
+
+
+def _series(terms):
+    """The sum of a series' four terms, added one after another to 0.0 as ``np.sum`` adds
+    four columns (same bits, signed zeros included), without the four-column arrays that
+    made the projection of a million nodes twice as slow."""
+    return sum(terms, 0.0)
 
 
 def _tm_forward(lat, lon, lon0):
@@ -82,9 +91,8 @@ def _tm_forward(lat, lon, lon0):
     tau = np.sinh(np.arctanh(sin_phi) - _E * np.arctanh(_E * sin_phi))  # conformal latitude
     xi_p = np.arctan2(tau, np.cos(lam))
     eta_p = np.arctanh(np.sin(lam) / np.sqrt(1 + tau**2))
-    xi = xi_p + np.sum(_ALPHA * np.sin(_J2 * xi_p[..., None]) * np.cosh(_J2 * eta_p[..., None]), -1)
-    eta = eta_p + np.sum(_ALPHA * np.cos(_J2 * xi_p[..., None]) * np.sinh(_J2 * eta_p[..., None]),
-                         -1)
+    xi = xi_p + _series(a * np.sin(j * xi_p) * np.cosh(j * eta_p) for a, j in _ALPHA_J)
+    eta = eta_p + _series(a * np.cos(j * xi_p) * np.sinh(j * eta_p) for a, j in _ALPHA_J)
     return _RECTIFYING * eta, _RECTIFYING * xi
 
 
@@ -100,10 +108,10 @@ def local_to_latlon(x, y, origin: tuple[float, float]) -> tuple[np.ndarray, np.n
     lat0, lon0 = origin
     xi = (np.asarray(y, float) + _tm_forward(lat0, lon0, lon0)[1]) / _RECTIFYING
     eta = np.asarray(x, float) / _RECTIFYING
-    xi_p = xi - np.sum(_BETA * np.sin(_J2 * xi[..., None]) * np.cosh(_J2 * eta[..., None]), -1)
-    eta_p = eta - np.sum(_BETA * np.cos(_J2 * xi[..., None]) * np.sinh(_J2 * eta[..., None]), -1)
+    xi_p = xi - _series(b * np.sin(j * xi) * np.cosh(j * eta) for b, j in _BETA_J)
+    eta_p = eta - _series(b * np.cos(j * xi) * np.sinh(j * eta) for b, j in _BETA_J)
     chi = np.arcsin(np.sin(xi_p) / np.cosh(eta_p))  # conformal latitude
-    phi = chi + np.sum(_DELTA * np.sin(_J2 * chi[..., None]), -1)
+    phi = chi + _series(d * np.sin(j * chi) for d, j in _DELTA_J)
     return np.degrees(phi), lon0 + np.degrees(np.arctan2(np.sinh(eta_p), np.cos(xi_p)))
 
 
