@@ -302,10 +302,11 @@ def _assign_nodes(hd: HDMap, plan: _Plan, ids: _Ids) -> None:
     the whole map at once rather than point by point."""
     ways = list(plan.ways.values())
     way_index = {key: k for k, key in enumerate(plan.ways)}
-    slot = {lane_side: way_index[key] for lane_side, key in plan.slots.items()}
-    joints = [(2 * slot[(lane.id, side)] + 1, 2 * slot[(succ, side)])  # end of one, start of succ
+    bounds = {lane: (way_index[plan.slots[(lane, "left")]], way_index[plan.slots[(lane, "right")]])
+              for lane in hd.lanes}  # each lane's left and right way
+    joints = [(2 * end + 1, 2 * start)  # the end of a lane's way, the start of its successor's
               for lane in hd.lanes.values() for succ in lane.successors
-              for side in ("left", "right")]
+              for end, start in zip(bounds[lane.id], bounds[succ], strict=True)]
     a, b = np.array(joints, int).reshape(-1, 2).T
     n = 2 * len(ways)  # way end points: 2 * way + (0 = first, 1 = last)
     _, joint = connected_components(csr_matrix((np.ones(len(a)), (a, b)), shape=(n, n)))
