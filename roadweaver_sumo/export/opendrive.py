@@ -61,8 +61,9 @@ def opendrive_tree(hd: HDMap) -> Element:
     pieces = bezier_pieces(np.array([lane.bezier for lane in connectors]).reshape(-1, 4, 2))
     geometries = _rows(_GEOMETRY, [p[1:6] for p in pieces])
     curves = _rows(_PARAM_POLY3, [(*p.u, *p.v) for p in pieces])
-    for lane, piece, geometry, curve in zip(connectors, pieces, geometries, curves, strict=True):
-        root.append(_connecting_road(hd, lane, connecting[lane.id], piece, geometry, curve))
+    numbers = _connector_numbers(connectors, pieces)
+    for lane, geometry, curve, texts in zip(connectors, geometries, curves, numbers, strict=True):
+        root.append(_connecting_road(hd, lane, connecting[lane.id], geometry, curve, texts))
     root.extend(controllers)
     for jid in sorted(hd.junctions):
         if hd.junctions[jid].connectors:
@@ -271,19 +272,19 @@ def _road_lane(parent: Element, hd: HDMap, lane: Lane) -> None:
     """A road lane: constant width, its outer road mark, speed limit. No ``<link>``: the road
     ends in junctions at both ends (rule road.lane.link.no_link)."""
     elem = sub(parent, "lane", f' id="{xodr_lane_id(hd, lane)}" type="driving"')
-    elem.children.append(_width(float(lane.width), 0.0))
+    elem.children.append(_width(_num(float(lane.width)), _ZERO))
     _mark(elem, "solid" if lane.index == 0 else "broken")  # index 0: the outermost lane
-    elem.children.append(_speed(float(lane.speed)))
+    elem.children.append(_speed(_num(float(lane.speed))))
 
 
-def _width(a: float, b: float) -> str:
-    """``<width>`` text: linear width ``a + b s`` (formatted inline: one per lane)."""
-    return (f'<width sOffset="{_ZERO}" a="{_num(a)}" b="{_num(b)}" c="{_ZERO}"'
-            f' d="{_ZERO}"/>')
+def _width(a: str, b: str) -> str:
+    """``<width>`` text: linear width ``a + b s``, both written (formatted inline: one per
+    lane)."""
+    return f'<width sOffset="{_ZERO}" a="{a}" b="{b}" c="{_ZERO}" d="{_ZERO}"/>'
 
 
-def _speed(speed: float) -> str:
-    return f'<speed sOffset="{_ZERO}" max="{_num(speed)}" unit="m/s"/>'
+def _speed(speed: str) -> str:
+    return f'<speed sOffset="{_ZERO}" max="{speed}" unit="m/s"/>'
 
 
 def _mark(lane: Element, kind: str) -> None:
@@ -297,20 +298,32 @@ def _contact(lane: Lane, arriving: bool) -> str:
     return "end" if (lane.direction == "f") == arriving else "start"
 
 
-def _connecting_road(hd: HDMap, lane: Lane, rid: int, piece: Piece, geometry: str,
-                     curve: str) -> Block:
+def _connector_numbers(connectors: list[Lane], pieces: list[Piece]) -> list[list[str]]:
+    """Per connecting road its length, speed, lane offset (a, b) and width (a, b: linear
+    along s) as written: formatted all at once (see :func:`_rows`)."""
+    width, end_width, speed = np.array([(lane.width, lane.end_width, lane.speed)
+                                        for lane in connectors], float).reshape(-1, 3).T
+    length = np.array([p.length for p in pieces], float)
+    slope = (end_width - width) / length
+    values = np.column_stack([length, speed, width / 2.0, slope / 2.0, width, slope])
+    return [row.split("\t") for row in _rows("\t".join(["{}"] * 6), values)]
+
+
+def _connecting_road(hd: HDMap, lane: Lane, rid: int, geometry: str, curve: str,
+                     numbers: list[str]) -> Block:
     """A connector as a one-lane connecting road inside its junction (chapter "Junctions":
-    connecting roads) along ``piece`` (its ``<geometry>`` and ``<paramPoly3>`` lines
-    ``geometry`` and ``curve``), linked to its incoming and outgoing road and lanes.
+    connecting roads), its ``<geometry>`` and ``<paramPoly3>`` lines ``geometry`` and
+    ``curve`` and its other ``numbers`` (:func:`_connector_numbers`), linked to its incoming
+    and outgoing road and lanes.
 
     Written as one finished block of text (the most numerous road of a map: building it
     element by element cost a third of the file's time), in the file's two-space indent."""
     incoming, outgoing = hd.lanes[lane.predecessors[0]], hd.lanes[lane.successors[0]]
     road_type = ROAD_TYPES.get(lane.road_class, "town")
-    slope = (lane.end_width - lane.width) / piece.length  # linear width along s
+    length, speed, offset_a, offset_b, width, slope = numbers
     return Block(
         f'<road id="{rid}" name="{escape(lane.id)}" junction="{lane.junction}"'
-        f' length="{_num(piece.length)}" rule="RHT">\n'
+        f' length="{length}" rule="RHT">\n'
         f'  <link>\n'
         f'    <predecessor elementType="road" elementId="{incoming.road}"'
         f' contactPoint="{_contact(incoming, arriving=True)}"/>\n'
@@ -318,7 +331,7 @@ def _connecting_road(hd: HDMap, lane: Lane, rid: int, piece: Piece, geometry: st
         f' contactPoint="{_contact(outgoing, arriving=False)}"/>\n'
         f'  </link>\n'
         f'  <type s="{_ZERO}" type="{road_type}">\n'
-        f'    <speed max="{_num(float(lane.speed))}" unit="m/s"/>\n'
+        f'    <speed max="{speed}" unit="m/s"/>\n'
         f'  </type>\n'
         f'  <planView>\n'
         f'    {geometry}\n'
@@ -326,7 +339,7 @@ def _connecting_road(hd: HDMap, lane: Lane, rid: int, piece: Piece, geometry: st
         f'    </geometry>\n'
         f'  </planView>\n'
         f'  <lanes>\n'
-        f'    <laneOffset s="{_ZERO}" a="{_num(lane.width / 2.0)}" b="{_num(slope / 2.0)}"'
+        f'    <laneOffset s="{_ZERO}" a="{offset_a}" b="{offset_b}"'
         f' c="{_ZERO}" d="{_ZERO}"/>\n'
         f'    <laneSection s="{_ZERO}">\n'
         f'      <center>\n'
@@ -338,8 +351,8 @@ def _connecting_road(hd: HDMap, lane: Lane, rid: int, piece: Piece, geometry: st
         f'            <predecessor id="{xodr_lane_id(hd, incoming)}"/>\n'
         f'            <successor id="{xodr_lane_id(hd, outgoing)}"/>\n'
         f'          </link>\n'
-        f'          {_width(float(lane.width), slope)}\n'
-        f'          {_speed(float(lane.speed))}\n'
+        f'          {_width(width, slope)}\n'
+        f'          {_speed(speed)}\n'
         f'        </lane>\n'
         f'      </right>\n'
         f'    </laneSection>\n'
