@@ -563,12 +563,23 @@ def _add_bounds(root, hd: HDMap) -> None:
                                    ("maxlat", _degrees(lat.max())), ("maxlon", _degrees(lon.max())))))
 
 
-def _lanelet_tags(lane: Lane) -> str:
-    """The ``<tag>`` lines of a lane's lanelet: the cached ones, then the lane's own id
-    (formatted inline: ``LANE_TAG`` is a plain word, only the id needs escaping)."""
-    common = (("type", "lanelet"), ("subtype", "road"), ("location", "urban"),
-              ("one_way", "yes"), ("speed_limit", speed_limit_tag(lane.speed)))
-    return f'{_tag_lines(common)}{_INNER}<tag k="{LANE_TAG}" v="{escape(lane.id)}"/>'
+def _lanelet(rid: int, lane: Lane, left: int, right: int, regulatory: int | None) -> str:
+    """A lane's lanelet relation: its bounds, its traffic light if any, the tags of its speed
+    (cached) and its own id, formatted in one go (one per lane; ``LANE_TAG`` and the member
+    words are plain words, only the lane id needs escaping)."""
+    members = (f'<member type="way" ref="{left}" role="left"/>{_INNER}'
+               f'<member type="way" ref="{right}" role="right"/>')
+    if regulatory is not None:
+        members += f'{_INNER}<member type="relation" ref="{regulatory}" role="regulatory_element"/>'
+    return _element("relation", rid, f'{members}{_INNER}{_lanelet_speed_tags(lane.speed)}'
+                                     f'{_INNER}<tag k="{LANE_TAG}" v="{escape(lane.id)}"/>')
+
+
+@functools.lru_cache(maxsize=256)
+def _lanelet_speed_tags(speed: float) -> str:
+    """The ``<tag>`` lines of a lanelet but its lane id: they differ only by speed."""
+    return _tag_lines((("type", "lanelet"), ("subtype", "road"), ("location", "urban"),
+                       ("one_way", "yes"), ("speed_limit", speed_limit_tag(speed))))
 
 
 def lanelet2_tree(hd: HDMap) -> Element:
@@ -592,12 +603,9 @@ def lanelet2_tree(hd: HDMap) -> Element:
                            _tag_lines((("type", "regulatory_element"),
                                        ("subtype", "traffic_light"))))
                  for s in signals]
-    for lane in sorted(hd.lanes.values(), key=lambda lane: lane.id):
-        members = [("way", way_ids[plan.slots[(lane.id, side)]], side)
-                   for side in ("left", "right")]
-        if lane.id in regulatory:
-            members.append(("relation", regulatory[lane.id], "regulatory_element"))
-        relations.append(_relation(ids.new(), members, _lanelet_tags(lane)))
+    relations += [_lanelet(ids.new(), lane, way_ids[plan.slots[(lane.id, "left")]],
+                           way_ids[plan.slots[(lane.id, "right")]], regulatory.get(lane.id))
+                  for lane in sorted(hd.lanes.values(), key=lambda lane: lane.id)]
     for elements in (ways, relations):
         if elements:  # the root's children: lines one indent deep
             root.append(PlacedBlock(f"\n{INDENT}".join(elements)))
