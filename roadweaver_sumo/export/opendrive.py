@@ -174,6 +174,7 @@ _ZERO = _num(0.0)
 _GEOMETRY = "<geometry" + "".join(f' {key}="{{}}"' for key in ("s", "x", "y", "hdg", "length")) + ">"
 _PARAM_POLY3 = ("<paramPoly3" + "".join(f' {c}{axis}="{{}}"' for axis in "UV" for c in "abcd")
                 + ' pRange="normalized"/>')
+# A white road mark on a lane's outer border (``broken`` lines may be crossed).
 _MARKS = {kind: leaf("roadMark", _attrs({"sOffset": 0.0, "type": kind, "weight": "standard",
                                          "color": "standard", "width": MARK_WIDTH,
                                          "laneChange": "both" if kind == "broken" else "none"}))
@@ -248,15 +249,7 @@ def _road(hd: HDMap, road: Road, pieces: list[Piece], plan_view: str, signals: l
             _leaf(link, tag, elementType="junction", elementId=node)
     _road_type(elem, road.road_class, road.speed)
     elem.children.append(plan_view)
-    section = _sub(_sub(elem, "lanes"), "laneSection", s=0.0)
-    left = _sub(section, "left")
-    for lane_id in road.lanes("b"):  # outermost (id n) first: descending ids
-        _road_lane(left, hd, hd.lanes[lane_id])
-    centre = _sub(_sub(section, "center"), "lane", id=0, type="none")
-    _mark(centre, "solid" if road.road_class == "arterial" else "broken")
-    right = _sub(section, "right")
-    for lane_id in reversed(road.lanes("f")):  # innermost (id -1) first: descending ids
-        _road_lane(right, hd, hd.lanes[lane_id])
+    elem.children.append(_lanes(hd, road))
     if signals:
         _sub(elem, "signals").extend(signals)
     return elem
@@ -268,13 +261,31 @@ def _road_type(road: Element, road_class: str, speed: float) -> None:
     kind.children.append(f'<speed max="{_num(float(speed))}" unit="m/s"/>')
 
 
-def _road_lane(parent: Element, hd: HDMap, lane: Lane) -> None:
-    """A road lane: constant width, its outer road mark, speed limit. No ``<link>``: the road
-    ends in junctions at both ends (rule road.lane.link.no_link)."""
-    elem = sub(parent, "lane", f' id="{xodr_lane_id(hd, lane)}" type="driving"')
-    elem.children.append(_width(_num(float(lane.width)), _ZERO))
-    _mark(elem, "solid" if lane.index == 0 else "broken")  # index 0: the outermost lane
-    elem.children.append(_speed(_num(float(lane.speed))))
+def _lanes(hd: HDMap, road: Road) -> Block:
+    """``<lanes>``: one lane section, left lanes outermost (id n) first and right lanes
+    innermost (id -1) first (descending ids), as one finished block in the file's two-space
+    indent (lanes are the file's most numerous element after geometries)."""
+    centre = _MARKS["solid" if road.road_class == "arterial" else "broken"]
+    return Block("\n".join([
+        "<lanes>", f'  <laneSection s="{_ZERO}">',
+        *_side(hd, "left", road.lanes("b")),
+        "    <center>", '      <lane id="0" type="none">', f"        {centre}", "      </lane>",
+        "    </center>",
+        *_side(hd, "right", reversed(road.lanes("f"))),
+        "  </laneSection>", "</lanes>"]))
+
+
+def _side(hd: HDMap, tag: str, lane_ids) -> list[str]:
+    """The lines of ``<left>`` or ``<right>`` with its lanes: constant width, the outer road
+    mark, speed limit. No ``<link>``: the road ends in junctions at both ends (rule
+    road.lane.link.no_link)."""
+    lines = []
+    for lane in map(hd.lanes.__getitem__, lane_ids):
+        mark = _MARKS["solid" if lane.index == 0 else "broken"]  # index 0: the outermost lane
+        lines += [f'      <lane id="{xodr_lane_id(hd, lane)}" type="driving">',
+                  f"        {_width(_num(float(lane.width)), _ZERO)}", f"        {mark}",
+                  f"        {_speed(_num(float(lane.speed)))}", "      </lane>"]
+    return [f"    <{tag}>", *lines, f"    </{tag}>"] if lines else [f"    <{tag}/>"]
 
 
 def _width(a: str, b: str) -> str:
@@ -285,11 +296,6 @@ def _width(a: str, b: str) -> str:
 
 def _speed(speed: str) -> str:
     return f'<speed sOffset="{_ZERO}" max="{speed}" unit="m/s"/>'
-
-
-def _mark(lane: Element, kind: str) -> None:
-    """A white road mark on the lane's outer border (``broken`` lines may be crossed)."""
-    lane.children.append(_MARKS[kind])
 
 
 def _contact(lane: Lane, arriving: bool) -> str:
