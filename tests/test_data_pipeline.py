@@ -252,6 +252,100 @@ def test_field_to_graph_round_trip_keeps_road_nodes():
                for e in H.edges)
 
 
+def _skeleton_graph_path_by_path(mask: np.ndarray, res: float, tile_m: float) -> nx.Graph:
+    """``vectorise.skeleton_graph`` as it was first written: each path walked on the sparse
+    matrix, smoothed and simplified on its own (the reference for the batched version)."""
+    import shapely
+    from skimage.morphology import skeletonize
+
+    from roadweaver_sumo.data.build import add_segment, node_counter
+    from roadweaver_sumo.data.vectorise import _key_clusters, pixel_graph
+
+    pix, A = pixel_graph(skeletonize(mask))
+    degree = np.asarray(A.sum(axis=1)).ravel().astype(int)
+    node = _key_clusters(A, degree)
+    xy = (pix[:, ::-1] + 0.5) * res
+    G = new_road_graph(tile_m, tile_m * mask.shape[0] / mask.shape[1])
+    ids, cluster = np.unique(node[node >= 0], return_inverse=True)
+    size = np.bincount(cluster)
+    centre = np.column_stack([np.bincount(cluster, weights=xy[node >= 0, k]) / size
+                              for k in (0, 1)])
+    for n, (x, y) in zip(ids.tolist(), centre.tolist(), strict=True):
+        G.add_node(n, xy=(x, y))
+    fresh = node_counter(G, start=len(pix) + 1)
+
+    def neighbours(k):
+        return A.indices[A.indptr[k]:A.indptr[k + 1]]
+
+    def traces():
+        covered, done = node >= 0, set()
+        for k in np.flatnonzero(node >= 0):
+            for nb in neighbours(k):
+                if node[nb] == node[k] or (k, nb) in done:
+                    continue
+                path = [k, nb]
+                while node[path[-1]] < 0:
+                    path.append(next(p for p in neighbours(path[-1]) if p != path[-2]))
+                done.add((path[-1], path[-2]))
+                covered[path] = True
+                yield node[k], node[path[-1]], path
+        for start in np.flatnonzero(~covered):
+            if covered[start]:
+                continue
+            path = [start]
+            while True:
+                nbrs = [p for p in neighbours(path[-1]) if len(path) < 2 or p != path[-2]]
+                if not nbrs or nbrs[0] == start:
+                    break
+                path.append(nbrs[0])
+            covered[path] = True
+            yield -1 - start, -1 - start, path + [start]
+
+    for a, b, path in traces():
+        for n, p in ((a, path[0]), (b, path[-1])):
+            if n not in G:
+                G.add_node(int(n), xy=(float(xy[p, 0]), float(xy[p, 1])))
+        c = xy[path].copy()
+        c[0], c[-1] = G.nodes[a]["xy"], G.nodes[b]["xy"]
+        for _ in range(2):
+            if len(c) >= 3:
+                c[1:-1] = 0.25 * c[:-2] + 0.5 * c[1:-1] + 0.25 * c[2:]
+        line = shapely.simplify(shapely.LineString(c), 0.5 * res)
+        add_segment(G, int(a), int(b), np.asarray(line.coords), "arterial", fresh)
+    return G
+
+
+def _same_graph(G: nx.Graph, H: nx.Graph) -> bool:
+    """Same nodes, edges, attributes and insertion order, coordinates to the bit."""
+    return (list(G.nodes(data=True)) == list(H.nodes(data=True))
+            and [(u, v, d["start"], d["road_class"], d["coords"].tobytes())
+                 for u, v, d in G.edges(data=True)]
+            == [(u, v, d["start"], d["road_class"], d["coords"].tobytes())
+                for u, v, d in H.edges(data=True)])
+
+
+def test_skeleton_graph_equals_tracing_path_by_path():
+    """The batched tracing, smoothing and simplification give the graph, bit for bit, that
+    handling each path on its own gave: on a rasterised town, and on a mask with a ring, a
+    loop back to its junction, two roads between the same junctions and a lone speck."""
+    from roadweaver_sumo.data.vectorise import skeleton_graph
+
+    mask = np.zeros((60, 90), bool)
+    mask[10:12, 5:85] = mask[40:42, 5:85] = True
+    mask[10:42, 20:22] = mask[10:42, 60:62] = True
+    yy, xx = np.mgrid[0:60, 0:90]
+    mask |= np.abs(np.hypot(yy - 25, xx - 40) - 8) < 1.0  # a ring touching nothing
+    mask |= np.abs(np.hypot(yy - 48, xx - 75) - 6) < 1.0  # a loop off the lower road
+    mask[55, 10] = True
+    fields = [(mask, 13.7)]
+    for G in (grid_graph(2000.0, 200.0, margin=100.0, jitter=6.0, seed=1), radial_graph()):
+        fields.append((road_field(G, 96)[..., 0] >= 0.5, 2000.0 / 96))
+    for m, res in fields:
+        H = skeleton_graph(m, res, m.shape[1] * res)
+        assert H.number_of_edges() > 3
+        assert _same_graph(H, _skeleton_graph_path_by_path(m, res, m.shape[1] * res))
+
+
 def test_condition_vector_orders_grid_curvy_and_radial_towns():
     grid = grid_graph(2000.0, 150.0, margin=75.0)
     curvy = grid_graph(2000.0, 150.0, margin=75.0, curve=35.0, jitter=20.0)

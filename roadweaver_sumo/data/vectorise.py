@@ -58,34 +58,38 @@ def _key_clusters(A: sparse.csr_matrix, degree: np.ndarray) -> np.ndarray:
     return node
 
 
-def _trace(A: sparse.csr_matrix, node: np.ndarray):
-    """(node a, node b, pixel path) for every chain between key pixels, then closed rings."""
+def _trace(A: sparse.csr_matrix, node: np.ndarray) -> list[tuple[int, int, list[int]]]:
+    """(node a, node b, pixel path) for every chain between key pixels, then closed rings.
+    (Walked on Python lists: a 10 km field has some 100,000 chain pixels, and indexing numpy
+    arrays one pixel at a time cost more than the walk.)"""
+    indptr, indices, key = A.indptr.tolist(), A.indices.tolist(), node.tolist()
     covered = node >= 0
     done: set[tuple[int, int]] = set()
-    for k in np.flatnonzero(node >= 0):
-        for nb in A.indices[A.indptr[k] : A.indptr[k + 1]]:
-            if node[nb] == node[k] or (k, nb) in done:
+    traces = []
+    for k in np.flatnonzero(node >= 0).tolist():
+        for nb in indices[indptr[k] : indptr[k + 1]]:
+            if key[nb] == key[k] or (k, nb) in done:
                 continue
             path = [k, nb]
-            while node[path[-1]] < 0:
-                cur = path[-1]
-                nxt = [p for p in A.indices[A.indptr[cur] : A.indptr[cur + 1]] if p != path[-2]]
-                path.append(nxt[0])
+            while key[path[-1]] < 0:  # a chain pixel: exactly two neighbours
+                p, q = indices[indptr[path[-1]] : indptr[path[-1] + 1]]
+                path.append(q if p == path[-2] else p)
             done.add((path[-1], path[-2]))
             covered[path] = True
-            yield node[k], node[path[-1]], path
-    for start in np.flatnonzero(~covered):  # rings of degree-2 pixels with no junction
+            traces.append((key[k], key[path[-1]], path))
+    for start in np.flatnonzero(~covered).tolist():  # rings of degree-2 pixels with no junction
         if covered[start]:
             continue
         path = [start]
         while True:
-            nbrs = [p for p in A.indices[A.indptr[path[-1]] : A.indptr[path[-1] + 1]]
+            nbrs = [p for p in indices[indptr[path[-1]] : indptr[path[-1] + 1]]
                     if len(path) < 2 or p != path[-2]]
             if not nbrs or nbrs[0] == start:
                 break
             path.append(nbrs[0])
         covered[path] = True
-        yield -1 - start, -1 - start, path + [start]
+        traces.append((-1 - start, -1 - start, path + [start]))
+    return traces
 
 
 def skeleton_graph(mask: np.ndarray, res: float, tile_m: float,
@@ -105,26 +109,39 @@ def skeleton_graph(mask: np.ndarray, res: float, tile_m: float,
     for n, (x, y) in zip(ids.tolist(), centre.tolist(), strict=True):
         G.add_node(n, xy=(x, y))
     fresh = node_counter(G, start=len(pix) + 1)
-    for a, b, path in _trace(A, node):
-        for n, p in ((a, path[0]), (b, path[-1])):
-            if n not in G:
-                G.add_node(int(n), xy=(float(xy[p, 0]), float(xy[p, 1])))
-        coords = xy[path].copy()
-        coords[0], coords[-1] = G.nodes[a]["xy"], G.nodes[b]["xy"]
-        line = shapely.simplify(shapely.LineString(smooth_polyline(coords)), 0.5 * res)
-        add_segment(G, int(a), int(b), np.asarray(line.coords), road_class, fresh)
+    traces = _trace(A, node)
+    for (a, b, path), line in zip(traces, _centrelines(traces, xy, centre, res), strict=True):
+        if a not in G:  # a ring's node, on its first pixel
+            G.add_node(a, xy=(float(xy[path[0], 0]), float(xy[path[0], 1])))
+        add_segment(G, a, b, line, road_class, fresh)
     return G
 
 
-def smooth_polyline(coords: np.ndarray, passes: int = 2) -> np.ndarray:
-    """Pixel staircase to a smooth line: ``passes`` rounds of a (1/4, 1/2, 1/4) average of the
-    interior points (ends fixed), which removes one-pixel steps but keeps bends."""
-    c = coords.copy()
-    for _ in range(passes):
-        if len(c) < 3:
-            break
-        c[1:-1] = 0.25 * c[:-2] + 0.5 * c[1:-1] + 0.25 * c[2:]
-    return c
+def _centrelines(traces, xy: np.ndarray, centre: np.ndarray, res: float) -> list[np.ndarray]:
+    """The polyline of every traced path: its pixel centres from node to node, with two rounds
+    of a (1/4, 1/2, 1/4) average of the interior points (ends fixed), which removes one-pixel
+    steps but keeps bends, then simplified to half a pixel. All paths go through numpy and
+    shapely at once; each point is computed as a path on its own would compute it."""
+    if not traces:
+        return []
+    paths = [path for _, _, path in traces]
+    sizes = np.array([len(path) for path in paths])
+    last = np.cumsum(sizes) - 1
+    first = last - sizes + 1
+    coords = xy[np.concatenate(paths)]
+    ends = np.concatenate([first, last])
+    nodes = np.array([a for a, _, _ in traces] + [b for _, b, _ in traces])
+    keyed = nodes >= 0  # a ring's node is its first pixel already
+    coords[ends[keyed]] = centre[nodes[keyed]]
+    inner = np.ones(len(coords), dtype=bool)
+    inner[first] = inner[last] = False
+    for _ in range(2):
+        smoothed = 0.25 * coords[:-2] + 0.5 * coords[1:-1] + 0.25 * coords[2:]
+        coords[1:-1] = np.where(inner[1:-1, None], smoothed, coords[1:-1])
+    lines = shapely.simplify(shapely.linestrings(coords, indices=np.repeat(np.arange(len(paths)),
+                                                                           sizes)), 0.5 * res)
+    return np.split(shapely.get_coordinates(lines),
+                    np.cumsum(shapely.get_num_coordinates(lines))[:-1])
 
 
 def _pixel_value(channel: np.ndarray, xy, res: float) -> float:
