@@ -14,6 +14,7 @@ import torch
 
 from roadweaver_sumo import cli
 from roadweaver_sumo.data.prepare import prepare_dataset
+from roadweaver_sumo.generative import inference
 from roadweaver_sumo.generative.checkpoint import (
     SHIPPED_MASKGIT,
     SHIPPED_VQVAE,
@@ -202,6 +203,21 @@ def test_trunk_rows_are_bitwise_those_of_the_full_trunk():
         rows = np.flatnonzero(masked)
         assert np.array_equal(gen.sampler.trunk(tokens, masked, row, rows),
                               gen.sampler.trunk(tokens, masked, row)[rows])
+
+
+@pytest.mark.skipif(not SHIPPED_VQVAE.is_file(), reason="weights not trained yet")
+def test_decoding_on_two_threads_gives_the_fields_of_one(monkeypatch):
+    """decode_canvas, whose convolutions split their products over two threads (halves of the
+    rows, output phases), decodes to the bit what the decoder computes with every product
+    whole on BLAS's own threads: canvases of one token row up to larger than a window."""
+    gen = Generator.load()
+    G, K = gen.decoder.codes.shape[:2]
+    canvases = [np.random.default_rng(1).integers(0, K, (*shape, G))
+                for shape in ((1, 3), (2, 2), (5, 7), (24, 19))]
+    fields = [decode_canvas(gen.decoder, tokens) for tokens in canvases]
+    monkeypatch.setattr(inference, "_halves", lambda n: [(0, n)])
+    for tokens, field in zip(canvases, fields, strict=True):
+        assert np.array_equal(field, gen.decoder.decode(tokens))
 
 
 @pytest.mark.skipif(not SHIPPED_MASKGIT.is_file(), reason="weights not trained yet")

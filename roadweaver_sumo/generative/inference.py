@@ -313,19 +313,21 @@ class FieldDecoder:
             ("silu, conv", *_conv_taps(w, f"{net}.9")),
         ]
 
-    def decode(self, tokens: np.ndarray) -> np.ndarray:
-        """Tokens (h, w, G) -> field (8h, 8w, 6) in the value ranges of F."""
+    def decode(self, tokens: np.ndarray, map_rows=map) -> np.ndarray:
+        """Tokens (h, w, G) -> field (8h, 8w, 6) in the value ranges of F. The convolutions'
+        matrix products split into independent parts (halves of the rows, output phases), and
+        ``map_rows`` (a thread pool's ``map``) may compute them side by side."""
         h, w, G = tokens.shape
         x = self.codes[np.arange(G), tokens].reshape(h, w, -1)
         for kind, *params in self.layers:
             if kind == "conv":
-                x = _conv3x3(_padded(x), *params)
+                x = _conv3x3(_padded(x), *params, map_rows)
             elif kind == "res":
-                x = _apply_res_block(x, params[0])
+                x = _apply_res_block(x, params[0], map_rows)
             elif kind == "up":
-                x = _conv_transpose(x, *params)
+                x = _conv_transpose(x, *params, map_rows)
             else:
-                x = _conv3x3(_norm_silu_padded(x, _NO_AFFINE, _NO_AFFINE, 0), *params)
+                x = _conv3x3(_norm_silu_padded(x, _NO_AFFINE, _NO_AFFINE, 0), *params, map_rows)
         out = expit(x)
         out[..., 1:3] = np.tanh(x[..., 1:3])
         return out
@@ -349,9 +351,9 @@ def _res_block(w: dict, name: str) -> dict:
             "norm2": (w[f"{body}.3.weight"], w[f"{body}.3.bias"]), "conv2": _conv_taps(w, f"{body}.5")}
 
 
-def _apply_res_block(x: np.ndarray, block: dict) -> np.ndarray:
-    h = _conv3x3(_norm_silu_padded(x, *block["norm1"], GROUPS), *block["conv1"])
-    h = _conv3x3(_norm_silu_padded(h, *block["norm2"], GROUPS), *block["conv2"])
+def _apply_res_block(x: np.ndarray, block: dict, map_rows=map) -> np.ndarray:
+    h = _conv3x3(_norm_silu_padded(x, *block["norm1"], GROUPS), *block["conv1"], map_rows)
+    h = _conv3x3(_norm_silu_padded(h, *block["norm2"], GROUPS), *block["conv2"], map_rows)
     return x + h
 
 
@@ -402,20 +404,35 @@ def _norm_silu_padded(x, weight, bias, groups):  # pragma: no cover - compiled
     return out
 
 
-def _conv3x3(padded: np.ndarray, taps: np.ndarray, bias: np.ndarray) -> np.ndarray:
+def _conv3x3(padded: np.ndarray, taps: np.ndarray, bias: np.ndarray,
+             map_rows=map) -> np.ndarray:
     """3 x 3 convolution of an image given in the layout of :func:`_padded`. The padded
     image is flattened, so each tap is one matrix product on a contiguous slice (rows of the
-    result that fall on the padding columns are dropped at the end)."""
+    result that fall on the padding columns are dropped at the end); the two halves of the
+    rows go through ``map_rows``."""
     H, Wp = padded.shape[0] - 3, padded.shape[1]
     W = Wp - 2
     flat = padded.reshape(-1, padded.shape[2])
     out = np.empty((H * Wp, taps.shape[2]), F32)
     out[:] = bias
-    for dy in range(3):
-        for dx in range(3):
-            start = dy * Wp + dx
-            out += flat[start:start + H * Wp] @ taps[3 * dy + dx]
+
+    def rows(span: tuple[int, int]) -> None:
+        a, b = span
+        for dy in range(3):
+            for dx in range(3):
+                start = dy * Wp + dx
+                out[a:b] += flat[start + a:start + b] @ taps[3 * dy + dx]
+
+    list(map_rows(rows, _halves(H * Wp)))
     return np.ascontiguousarray(out.reshape(H, Wp, -1)[:, :W])
+
+
+def _halves(n: int) -> list[tuple[int, int]]:
+    """Rows 0..n in two halves, or whole where a half would be too few rows to come out of
+    the matrix product with the bits of the whole (``MIN_ROWS``)."""
+    if n < 2 * MIN_ROWS:
+        return [(0, n)]
+    return [(0, n // 2), (n // 2, n)]
 
 
 #: ConvTranspose2d(kernel 4, stride 2, padding 1): output row 2i + phase takes input rows
@@ -423,20 +440,25 @@ def _conv3x3(padded: np.ndarray, taps: np.ndarray, bias: np.ndarray) -> np.ndarr
 _PHASE_TAPS = {0: ((0, 1), (-1, 3)), 1: ((1, 0), (0, 2))}
 
 
-def _conv_transpose(x: np.ndarray, taps: np.ndarray, bias: np.ndarray) -> np.ndarray:
+def _conv_transpose(x: np.ndarray, taps: np.ndarray, bias: np.ndarray,
+                    map_rows=map) -> np.ndarray:
     """Stride-2 4 x 4 transposed convolution (padding 1) of (H, W, Cin) -> (2H, 2W, Cout):
-    each of the four output phases is a 2 x 2 convolution of the input."""
+    each of the four output phases is a 2 x 2 convolution of the input (through
+    ``map_rows``)."""
     H, W, C = x.shape
     Wp = W + 2
     flat = np.pad(x, ((1, 2), (1, 1), (0, 0))).reshape(-1, C)
     out = np.empty((H, 2, W, 2, taps.shape[3]), F32)
-    for py, row_taps in _PHASE_TAPS.items():
-        for px, col_taps in _PHASE_TAPS.items():
-            acc = np.empty((H * Wp, taps.shape[3]), F32)
-            acc[:] = bias
-            for oy, ky in row_taps:
-                for ox, kx in col_taps:
-                    start = (1 + oy) * Wp + 1 + ox
-                    acc += flat[start:start + H * Wp] @ taps[ky, kx]
-            out[:, py, :, px] = acc.reshape(H, Wp, -1)[:, :W]
+
+    def phase(py_px: tuple[int, int]) -> None:
+        py, px = py_px
+        acc = np.empty((H * Wp, taps.shape[3]), F32)
+        acc[:] = bias
+        for oy, ky in _PHASE_TAPS[py]:
+            for ox, kx in _PHASE_TAPS[px]:
+                start = (1 + oy) * Wp + 1 + ox
+                acc += flat[start:start + H * Wp] @ taps[ky, kx]
+        out[:, py, :, px] = acc.reshape(H, Wp, -1)[:, :W]
+
+    list(map_rows(phase, [(py, px) for py in _PHASE_TAPS for px in _PHASE_TAPS]))
     return out.reshape(2 * H, 2 * W, -1)

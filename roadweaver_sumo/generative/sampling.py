@@ -71,10 +71,11 @@ class Generator:
 
 @contextmanager
 def two_threads() -> Iterator[ThreadPoolExecutor]:
-    """Two threads, each multiplying its matrices on one core, for two windows side by side or
-    a lone window's two transformer rows (with and without the condition): twice as fast as
-    one batch on two BLAS threads, whose start-up costs more than these small products. A row
-    is computed the same way on any thread, so the tokens do not depend on them."""
+    """Two threads, each multiplying its matrices on one core: for two windows side by side or
+    a lone window's two transformer rows (with and without the condition), twice as fast as
+    one batch on two BLAS threads, whose start-up costs more than these small products; and
+    for the two parts of each decoder convolution. A row is computed the same way on any
+    thread, so neither the tokens nor the fields depend on them."""
     with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(2) as pool:
         yield pool
 
@@ -209,15 +210,18 @@ def decode_canvas(decoder: FieldDecoder, tokens: np.ndarray, block: int = DECODE
                   margin: int = DECODE_MARGIN) -> np.ndarray:
     """Decode a token canvas (ny, nx, G) into F (8 ny, 8 nx, 6) in blocks of ``block`` tokens,
     each decoded with ``margin`` tokens of context on every side and only its centre kept, so
-    memory stays bounded on a 50 km map."""
+    memory stays bounded on a 50 km map. The convolutions' products are split over
+    :func:`two_threads`: on BLAS's own two threads, which spin while they wait for each other,
+    a 10 km canvas took 1.3-2.6 s of CPU time on a busy machine, on these 0.55-0.7 s."""
     ny, nx = tokens.shape[:2]
     out = np.zeros((8 * ny, 8 * nx, 6), dtype=np.float32)
-    for y0 in range(0, ny, block):
-        for x0 in range(0, nx, block):
-            ya, xa = max(y0 - margin, 0), max(x0 - margin, 0)
-            yb, xb = min(y0 + block + margin, ny), min(x0 + block + margin, nx)
-            part = decoder.decode(tokens[ya:yb, xa:xb])
-            h, w = min(block, ny - y0), min(block, nx - x0)
-            oy, ox = 8 * (y0 - ya), 8 * (x0 - xa)
-            out[8 * y0:8 * (y0 + h), 8 * x0:8 * (x0 + w)] = part[oy:oy + 8 * h, ox:ox + 8 * w]
+    with two_threads() as pool:
+        for y0 in range(0, ny, block):
+            for x0 in range(0, nx, block):
+                ya, xa = max(y0 - margin, 0), max(x0 - margin, 0)
+                yb, xb = min(y0 + block + margin, ny), min(x0 + block + margin, nx)
+                part = decoder.decode(tokens[ya:yb, xa:xb], pool.map)
+                h, w = min(block, ny - y0), min(block, nx - x0)
+                oy, ox = 8 * (y0 - ya), 8 * (x0 - xa)
+                out[8 * y0:8 * (y0 + h), 8 * x0:8 * (x0 + w)] = part[oy:oy + 8 * h, ox:ox + 8 * w]
     return out
