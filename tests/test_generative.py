@@ -8,6 +8,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+import numba
 import numpy as np
 import pytest
 import torch
@@ -218,6 +219,45 @@ def test_decoding_on_two_threads_gives_the_fields_of_one(monkeypatch):
     monkeypatch.setattr(inference, "_halves", lambda n: [(0, n)])
     for tokens, field in zip(canvases, fields, strict=True):
         assert np.array_equal(field, gen.decoder.decode(tokens))
+
+
+def _group_norm_silu_group_by_group(x, weight, bias, groups):
+    """The decoder's GroupNorm + SiLU as first written: each group's statistics in passes of
+    their own (the reference for the merged passes)."""
+    H, W, C = x.shape
+    out = np.zeros((H + 3, W + 2, C), np.float32)
+    size, count = C // groups, H * W * (C // groups)
+    for g in range(groups):
+        total = 0.0
+        for i in range(H):
+            for j in range(W):
+                for c in range(g * size, (g + 1) * size):
+                    total += x[i, j, c]
+        mean = np.float32(total / count)
+        sq = 0.0
+        for i in range(H):
+            for j in range(W):
+                for c in range(g * size, (g + 1) * size):
+                    diff = x[i, j, c] - mean
+                    sq += diff * diff
+        inv = np.float32(1.0 / np.sqrt(sq / count + 1e-5))
+        for c in range(g * size, (g + 1) * size):
+            scale, shift = inv * weight[c], bias[c] - mean * inv * weight[c]
+            for i in range(H):
+                for j in range(W):
+                    v = x[i, j, c] * scale + shift
+                    out[i + 1, j + 1, c] = v / (np.float32(1.0) + np.float32(math.exp(-v)))
+    return out
+
+
+def test_group_norm_statistics_of_all_groups_in_one_pass_are_those_group_by_group():
+    reference = numba.njit(_group_norm_silu_group_by_group)
+    rng = np.random.default_rng(2)
+    for shape, groups in (((9, 7, 32), 8), ((40, 33, 64), 8), ((5, 6, 16), 4)):
+        x = (rng.normal(size=shape) * 10.0 ** rng.uniform(-6, 6, shape)).astype(np.float32)
+        weight, bias = (rng.normal(size=(2, shape[2])) + [[1.0], [0.0]]).astype(np.float32)
+        assert np.array_equal(inference._norm_silu_padded(x, weight, bias, groups),
+                              reference(x, weight, bias, groups))
 
 
 @pytest.mark.skipif(not SHIPPED_MASKGIT.is_file(), reason="weights not trained yet")

@@ -370,8 +370,9 @@ def _padded(x: np.ndarray) -> np.ndarray:
 @compiled(F4_3D(F4_3D, F4_1D, F4_1D, I8), nogil=True)
 def _norm_silu_padded(x, weight, bias, groups):  # pragma: no cover - compiled
     """SiLU(GroupNorm(x)) of an image (H, W, C), written into the padded layout of
-    :func:`_padded`; ``groups`` 0 is SiLU alone. One pass for the statistics and one for
-    the output, where numpy made six full-size temporaries."""
+    :func:`_padded`; ``groups`` 0 is SiLU alone. A pass for the groups' means, one for their
+    variances and one for the output, where numpy made six full-size temporaries. (Each
+    group's sums take its values in the order of a pass over that group alone.)"""
     H, W, C = x.shape
     out = np.zeros((H + 3, W + 2, C), np.float32)
     scale = np.ones(C, np.float32)
@@ -379,23 +380,31 @@ def _norm_silu_padded(x, weight, bias, groups):  # pragma: no cover - compiled
     if groups > 0:
         size = C // groups
         count = H * W * size
+        total = np.zeros(groups)
+        for i in range(H):
+            for j in range(W):
+                for g in range(groups):
+                    acc = total[g]
+                    for c in range(g * size, (g + 1) * size):
+                        acc += x[i, j, c]
+                    total[g] = acc
+        mean = np.empty(groups, np.float32)
         for g in range(groups):
-            total = 0.0
-            for i in range(H):
-                for j in range(W):
+            mean[g] = np.float32(total[g] / count)
+        sq = np.zeros(groups)
+        for i in range(H):
+            for j in range(W):
+                for g in range(groups):
+                    acc = sq[g]
                     for c in range(g * size, (g + 1) * size):
-                        total += x[i, j, c]
-            mean = np.float32(total / count)
-            sq = 0.0
-            for i in range(H):
-                for j in range(W):
-                    for c in range(g * size, (g + 1) * size):
-                        diff = x[i, j, c] - mean
-                        sq += diff * diff
-            inv = np.float32(1.0 / np.sqrt(sq / count + 1e-5))
+                        diff = x[i, j, c] - mean[g]
+                        acc += diff * diff
+                    sq[g] = acc
+        for g in range(groups):
+            inv = np.float32(1.0 / np.sqrt(sq[g] / count + 1e-5))
             for c in range(g * size, (g + 1) * size):
                 scale[c] = inv * weight[c]
-                shift[c] = bias[c] - mean * inv * weight[c]
+                shift[c] = bias[c] - mean[g] * inv * weight[c]
     for i in range(H):
         for j in range(W):
             for c in range(C):
