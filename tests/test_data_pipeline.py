@@ -346,6 +346,19 @@ def test_skeleton_graph_equals_tracing_path_by_path():
         assert _same_graph(H, _skeleton_graph_path_by_path(m, res, m.shape[1] * res))
 
 
+def test_vectoriser_adds_roads_as_add_segment_does(monkeypatch):
+    """The vectoriser adds a road between two nodes not yet joined without add_segment's
+    checks: the cleaned graph (junctions merged on the way) is the one add_segment builds."""
+    from roadweaver_sumo.data import build, vectorise
+
+    fields = [road_field(G, 96) for G in (grid_graph(2000.0, 200.0, margin=100.0, jitter=6.0,
+                                                     seed=1), radial_graph())]
+    graphs = [field_to_graph(F, 2000.0) for F in fields]
+    monkeypatch.setattr(vectorise, "_add_segment", build.add_segment)
+    for F, H in zip(fields, graphs, strict=True):
+        assert _same_graph(H, field_to_graph(F, 2000.0))
+
+
 def test_condition_vector_orders_grid_curvy_and_radial_towns():
     grid = grid_graph(2000.0, 150.0, margin=75.0)
     curvy = grid_graph(2000.0, 150.0, margin=75.0, curve=35.0, jitter=20.0)
