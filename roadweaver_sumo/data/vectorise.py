@@ -60,8 +60,8 @@ def _key_clusters(A: sparse.csr_matrix, degree: np.ndarray) -> np.ndarray:
 
 def _trace(A: sparse.csr_matrix, node: np.ndarray) -> list[tuple[int, int, list[int]]]:
     """(node a, node b, pixel path) for every chain between key pixels, then closed rings.
-    (Walked on Python lists: a 10 km field has some 100,000 chain pixels, and indexing numpy
-    arrays one pixel at a time cost more than the walk.)"""
+    (Walked on Python lists: a 10 km field has some 27,000 skeleton pixels, and indexing
+    numpy arrays one pixel at a time cost more than the walk.)"""
     indptr, indices, key = A.indptr.tolist(), A.indices.tolist(), node.tolist()
     covered = node >= 0
     done: set[tuple[int, int]] = set()
@@ -128,10 +128,11 @@ def _add_segment(G: nx.Graph, u, v, coords: np.ndarray, road_class: str, fresh) 
 
 
 def _centrelines(traces, xy: np.ndarray, centre: np.ndarray, res: float) -> list[np.ndarray]:
-    """The polyline of every traced path: its pixel centres from node to node, with two rounds
-    of a (1/4, 1/2, 1/4) average of the interior points (ends fixed), which removes one-pixel
-    steps but keeps bends, then simplified to half a pixel. All paths go through numpy and
-    shapely at once; each point is computed as a path on its own would compute it."""
+    """The polyline of every traced path (``centre`` row i: key node i's position): its pixel
+    centres from node to node, with two rounds of a (1/4, 1/2, 1/4) average of the interior
+    points (ends fixed), which removes one-pixel steps but keeps bends, then simplified to
+    half a pixel. All paths go through numpy and shapely at once; each point is computed as
+    a path on its own would compute it."""
     if not traces:
         return []
     paths = [path for _, _, path in traces]
