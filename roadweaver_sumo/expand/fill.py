@@ -123,9 +123,35 @@ def _split_face(face: Polygon, chord: np.ndarray, index: EdgeIndex) -> list[Poly
     inside = [index.lines[key] for key in index.near(face, 0.0)]
     if not inside:
         return parts
+    inside = _off_ring(face.exterior, inside)
     noded = shapely.union_all([face.exterior, *face.interiors, *inside])  # T's become nodes
     found = shapely.get_parts(shapely.polygonize(shapely.get_parts(noded)))
     return [p for p in found if p.area > 1.0 and face.contains(p.representative_point())]
+
+
+def _off_ring(ring, lines: list) -> list:
+    """``lines`` without those made only of segments of ``ring`` (the block's own edge roads).
+    Noding them against the ring only splits it at its own vertices, which polygonize joins
+    again (the blocks come out the same, vertex for vertex), and it was most of the union's
+    work. Compared by exact coordinates: each vertex gets the id of the ring vertex it equals."""
+    ring_xy = shapely.get_coordinates(ring).view(np.complex128).ravel()
+    vertices = np.sort(ring_xy)
+    ring_id = np.searchsorted(vertices, ring_xy)  # equal vertices get one id
+    n = len(vertices)
+    ring_segments = np.sort(np.concatenate([ring_id[:-1] * n + ring_id[1:],
+                                            ring_id[1:] * n + ring_id[:-1]]))
+    xy, which = shapely.get_coordinates(lines, return_index=True)
+    xy = xy.view(np.complex128).ravel()
+    vid = np.minimum(np.searchsorted(vertices, xy), n - 1)
+    vid[vertices[vid] != xy] = -1  # not a ring vertex
+    inner = which[:-1] == which[1:]  # consecutive vertices of one line: a segment
+    a, b = vid[:-1][inner], vid[1:][inner]
+    code = a * n + b
+    found = ring_segments[np.minimum(np.searchsorted(ring_segments, code), len(ring_segments) - 1)]
+    on = (a >= 0) & (b >= 0) & (found == code)
+    off_ring = np.zeros(len(lines), bool)
+    off_ring[which[:-1][inner][~on]] = True
+    return [line for line, keep in zip(lines, off_ring, strict=True) if keep]
 
 
 class _NodePoints:

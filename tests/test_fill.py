@@ -1,0 +1,42 @@
+"""The density fill's block splitting: faster formulations must give the same blocks."""
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, Polygon
+
+from roadweaver_sumo.expand import MIN_EDGE
+from roadweaver_sumo.expand.edge_index import EdgeIndex
+from roadweaver_sumo.expand.fill import _off_ring, _split_face, faces, insert_chord
+from roadweaver_sumo.expand.planar import build_planar_graph
+
+
+def test_off_ring_drops_only_the_roads_made_of_ring_segments():
+    """A road along the ring on its vertices (either way round) adds nothing to node; one with
+    a vertex of its own on the ring, one that leaves it, or one inside must stay."""
+    ring = Polygon([(0, 0), (0, 400), (800, 400), (800, 0)]).exterior
+    along = LineString([(0, 0), (0, 400), (800, 400)])
+    backwards = LineString([(800, 0), (800, 400)])
+    new_vertex = LineString([(0, 0), (0, 200), (0, 400)])
+    leaving = LineString([(0, 400), (800, 400), (900, 400)])
+    inside = LineString([(400, 0), (400, 300)])
+    lines = [along, new_vertex, backwards, leaving, inside]
+    assert _off_ring(ring, lines) == [new_vertex, leaving, inside]
+
+
+def test_split_face_with_a_dead_end_matches_noding_every_road():
+    """A chord ending on a dead end inside the block: the two blocks come out exactly (same
+    vertices, order and start) as when the block's own edge roads are noded too."""
+    ring = np.array([[0, 0], [800, 0], [800, 400], [0, 400], [0, 0]], float)
+    dead_end = np.array([[0, 150], [600, 150]], float)
+    G = build_planar_graph([(ring, "collector"), (dead_end, "local")], 1000, 1000)
+    (block,) = faces(G)
+    index = EdgeIndex(G)
+    chord = np.array([[300.0, 150.0], [300.0, 275.0], [300.0, 400.0]])
+    assert insert_chord(G, chord, MIN_EDGE, index) is not None
+    parts = _split_face(block, chord, index)
+    assert len(parts) == 2
+    everything = [index.lines[key] for key in index.near(block, 0.0)]
+    noded = shapely.union_all([block.exterior, *block.interiors, *everything])
+    found = shapely.get_parts(shapely.polygonize(shapely.get_parts(noded)))
+    expected = [p for p in found if p.area > 1.0 and block.contains(p.representative_point())]
+    assert [shapely.to_wkb(p) for p in parts] == [shapely.to_wkb(p) for p in expected]
