@@ -6,8 +6,9 @@ from shapely.geometry import LineString, Polygon
 
 from roadweaver_sumo.expand import MIN_EDGE
 from roadweaver_sumo.expand.edge_index import EdgeIndex
-from roadweaver_sumo.expand.fill import _off_ring, _split_face, faces, insert_chord
+from roadweaver_sumo.expand.fill import _NodePoints, _off_ring, _split_face, faces, insert_chord
 from roadweaver_sumo.expand.planar import build_planar_graph
+from roadweaver_sumo.roadgraph import new_road_graph
 
 
 def test_off_ring_drops_only_the_roads_made_of_ring_segments():
@@ -40,3 +41,27 @@ def test_split_face_with_a_dead_end_matches_noding_every_road():
     found = shapely.get_parts(shapely.polygonize(shapely.get_parts(noded)))
     expected = [p for p in found if p.area > 1.0 and block.contains(p.representative_point())]
     assert [shapely.to_wkb(p) for p in parts] == [shapely.to_wkb(p) for p in expected]
+
+
+def test_nodes_near_a_long_ring_are_found_as_by_measuring_every_one():
+    """A long block boundary with many nodes near it: the prepared ring only picks candidates;
+    the nodes found must be those whose distance to the ring is within the tolerance, also
+    those near it, and nodes added since the tree was built."""
+    angle = np.linspace(0.0, 2 * np.pi, 2001)
+    face = Polygon(np.column_stack([1000 * np.cos(angle), 700 * np.sin(angle)]))
+    coords = shapely.get_coordinates(face.exterior)
+    rng = np.random.default_rng(0)
+    on_ring = coords[rng.integers(0, len(coords) - 1, 300)]
+    offsets = rng.choice([0.0, 0.005, 0.0099, 0.0101, 0.02, 5.0], (300, 1))
+    pts = np.vstack([on_ring + offsets * rng.normal(size=(300, 2)) / np.sqrt(2),
+                     rng.uniform(-1000, 1000, (300, 2))])
+    G = new_road_graph(3000, 3000)
+    for n, xy in enumerate(pts[:500]):
+        G.add_node(n, xy=(float(xy[0]), float(xy[1])))
+    nodes = _NodePoints(G)
+    for n, xy in enumerate(pts[500:], start=500):
+        G.add_node(n, xy=(float(xy[0]), float(xy[1])))
+    nodes.update()
+    direct = np.flatnonzero(shapely.distance(face.exterior, shapely.points(pts)) <= 0.01)
+    assert 0 < len(direct) < len(pts)
+    assert [n for n, _ in nodes.on_boundary(face)] == sorted(direct)

@@ -596,25 +596,6 @@ def test_fill_node_ids_are_the_next_ids():
     assert index.new_node_id() == max(G.nodes) + 1
 
 
-def test_nodes_near_a_long_ring_are_found_as_by_measuring_every_one():
-    """A long block boundary with many nodes takes the segment-tree path; it must pick the
-    same nodes as measuring each node's distance to the ring, also those near the tolerance."""
-    from roadweaver_sumo.expand.fill import RING_PAIRS_DIRECT, _near_ring
-
-    angle = np.linspace(0.0, 2 * np.pi, 2001)
-    ring = shapely.LinearRing(np.column_stack([1000 * np.cos(angle), 700 * np.sin(angle)]))
-    coords = shapely.get_coordinates(ring)
-    rng = np.random.default_rng(0)
-    on_ring = coords[rng.integers(0, len(coords) - 1, 300)]
-    offsets = rng.choice([0.0, 0.005, 0.0099, 0.0101, 0.02, 5.0], (300, 1))
-    pts = np.vstack([on_ring + offsets * rng.normal(size=(300, 2)) / np.sqrt(2),
-                     rng.uniform(-1000, 1000, (300, 2))])
-    assert len(pts) * len(coords) > RING_PAIRS_DIRECT
-    direct = shapely.distance(ring, shapely.points(pts)) <= 0.01
-    assert 0 < direct.sum() < len(pts)
-    assert np.array_equal(_near_ring(ring, pts, 0.01), direct)
-
-
 def test_dead_ends_linked_by_a_forked_child_give_the_same_links(monkeypatch):
     """Large maps search every other dead end's link in a forked child; lowering the
     threshold makes a small map use it too: the same links in the same order."""

@@ -14,6 +14,7 @@ bridges are removed, shortest first.
 from __future__ import annotations
 
 import heapq
+import itertools
 import math
 from functools import partial
 
@@ -113,19 +114,24 @@ def stub_loss(G: nx.Graph, stub: float) -> int:
 
 def _split_face(face: Polygon, chord: np.ndarray, index: EdgeIndex) -> list[Polygon]:
     """The blocks ``face`` becomes with ``chord`` added. A chord across the face splits it in
-    two; one that ends on a dead-end road inside the face (which its rings leave out) closes
-    a block only together with that road, so such faces are re-polygonised from their rings,
-    the chord and the roads inside them."""
-    parts = [p for p in shapely.get_parts(shapely.ops.split(face, _extended(chord, 1.0)))
-             if p.area > 1.0]
+    two (as ``shapely.ops.split`` does it before GEOS 3.15: polygonize the boundary noded with
+    the chord); one that ends on a dead-end road inside the face (which its rings leave out)
+    closes a block only together with that road, so such faces are re-polygonised from their
+    rings, the chord and the roads inside them."""
+    shapely.prepare(face)  # for the containment tests
+    parts = _blocks(face, face.boundary.union(_extended(chord, 1.0)))
     if len(parts) > 1:
         return parts
     inside = [index.lines[key] for key in index.near(face, 0.0)]
     if not inside:
         return parts
     inside = _off_ring(face.exterior, inside)
-    noded = shapely.union_all([face.exterior, *face.interiors, *inside])  # T's become nodes
-    found = shapely.get_parts(shapely.polygonize(shapely.get_parts(noded)))
+    return _blocks(face, shapely.union_all([face.exterior, *face.interiors, *inside]))
+
+
+def _blocks(face: Polygon, noded) -> list[Polygon]:
+    """The polygons (over 1 m²) inside ``face`` that the ``noded`` lines enclose."""
+    found = shapely.get_parts(shapely.polygonize([noded]))  # takes each line of it in turn
     return [p for p in found if p.area > 1.0 and face.contains(p.representative_point())]
 
 
@@ -189,17 +195,24 @@ class _NodePoints:
         return self.by_xy.get((float(p[0]), float(p[1])))
 
     def on_boundary(self, face: Polygon, tolerance: float = 0.01) -> list[tuple]:
-        """(node, xy) of every node on ``face``'s outer boundary, sorted by id. A face is
-        split from the block it came from, so a junction a neighbouring block's road has since
-        made on the shared edge lies on that edge but is not one of the face's vertices."""
+        """(node, xy) of every node within ``tolerance`` of ``face``'s outer boundary, sorted by
+        id. A face is split from the block it came from, so a junction a neighbouring block's
+        road has since made on the shared edge lies on that edge but is not one of the face's
+        vertices. A prepared ring (its segments indexed once) picks the candidates, with twice
+        the tolerance as a margin; their distance to the ring is then measured exactly."""
         x0, y0, x1, y1 = face.bounds
         centre = np.array([0.5 * (x0 + x1), 0.5 * (y0 + y1)])
-        near = self.tree.query_ball_point(centre, 0.5 * math.hypot(x1 - x0, y1 - y0) + 1.0)
-        pts = np.vstack([self.tree.data[sorted(near)], self.added])
+        near = self.tree.query_ball_point(centre, 0.5 * math.hypot(x1 - x0, y1 - y0) + 1.0,
+                                          return_sorted=False)  # a set is made of them anyway
+        pts = np.vstack([self.tree.data[near], self.added])
         if len(pts) == 0:
             return []
-        found = {self.by_xy[(float(x), float(y))] for x, y in pts[_near_ring(face.exterior, pts,
-                                                                               tolerance)]}
+        ring = face.exterior
+        points = shapely.points(pts)
+        shapely.prepare(ring)
+        close = shapely.dwithin(ring, points, 2 * tolerance)
+        close[close] = shapely.distance(ring, points[close]) <= tolerance
+        found = {self.by_xy[(float(x), float(y))] for x, y in pts[close]}
         return sorted((n, np.asarray(self.G.nodes[n]["xy"], float)) for n in found)
 
     def any_within(self, p: np.ndarray, radius: float) -> bool:
@@ -208,28 +221,6 @@ class _NodePoints:
         near = self.tree.query_ball_point(p, radius + 1e-6)
         pts = np.vstack([self.tree.data[near], self.added])
         return len(pts) > 0 and bool(np.min(np.hypot(*(pts - p).T)) < radius)
-
-
-#: Above this many point-vertex pairs, points far from the ring are set aside by a segment tree
-#: first: measuring each point against a whole ring costs points x vertices, and the first
-#: blocks of a 20 km map have thousands of each (3.2 s of its density fill).
-RING_PAIRS_DIRECT = 20_000
-
-
-def _near_ring(ring, pts: np.ndarray, tolerance: float) -> np.ndarray:
-    """Which of ``pts`` lie within ``tolerance`` of ``ring``, as ``shapely.distance`` says:
-    where a segment tree is used, it only picks the candidates (with twice the tolerance as a
-    margin), and their distance to the ring is then measured exactly as without it."""
-    points = shapely.points(pts)
-    coords = shapely.get_coordinates(ring)
-    if len(pts) * len(coords) <= RING_PAIRS_DIRECT:
-        return shapely.distance(ring, points) <= tolerance
-    segments = shapely.linestrings(np.stack([coords[:-1], coords[1:]], axis=1))
-    near = np.unique(shapely.STRtree(segments).query(points, predicate="dwithin",
-                                                      distance=2 * tolerance)[0])
-    close = np.zeros(len(pts), dtype=bool)
-    close[near] = shapely.distance(ring, points[near]) <= tolerance
-    return close
 
 
 def _extended(chord: np.ndarray, by: float) -> LineString:
@@ -364,18 +355,7 @@ def _straight_in_face(face: Polygon, start, d, roads: EdgeIndex | None):
         return None
     x0, y0, x1, y1 = face.bounds
     path = LineString([start, start + 2.0 * (x1 - x0 + y1 - y0) * np.asarray(d, float)])
-    lines = [face.exterior, *face.interiors]  # inner rings (holes) stop it too
-    if roads is not None:
-        lines += [roads.lines[key] for key in roads.near(path, 0.0)]
-    best = None
-    for line in _crossed(path, lines):
-        hit = path.intersection(line)
-        if hit.is_empty:
-            continue
-        along = min(path.project(g) for g in shapely.get_parts(shapely.points(
-            shapely.get_coordinates(hit))))
-        if along > 1e-6 and (best is None or along < best[0]):
-            best = (along, line)
+    best = _first_hit(path, _crossed_lines(path, face, roads), skip_start=True)
     if best is None:
         return None
     along, line = best
@@ -383,11 +363,31 @@ def _straight_in_face(face: Polygon, start, d, roads: EdgeIndex | None):
     return np.asarray(start, float) + np.linspace(0.0, along, steps + 1)[:, None] * d, line
 
 
-def _crossed(path: LineString, lines: list) -> list:
-    """The lines ``path`` touches or crosses, in their order: one prepared predicate call
-    instead of an overlay (``intersection``) with each block ring, most of which it misses."""
+def _crossed_lines(path: LineString, face: Polygon, roads: EdgeIndex | None) -> list:
+    """The rings of ``face`` (inner rings, holes, stop a road too), then the roads in
+    ``roads``, that ``path`` touches or crosses: one prepared predicate call instead of an
+    overlay (``intersection``) with each block ring, most of which it misses. (The index
+    already tests the roads with the same predicate.)"""
+    rings = [face.exterior, *face.interiors]
     shapely.prepare(path)
-    return [line for line, hit in zip(lines, shapely.intersects(path, lines), strict=True) if hit]
+    lines = [line for line, hit in zip(rings, shapely.intersects(path, rings), strict=True) if hit]
+    return lines + ([roads.lines[key] for key in roads.near(path, 0.0)] if roads else [])
+
+
+def _first_hit(path: LineString, lines: list, skip_start: bool) -> tuple | None:
+    """(distance along ``path``, line) of the first of ``lines`` that ``path`` meets, where
+    its intersections with them lie (not at its very start, if ``skip_start``: the point a
+    road sets out from may lie on a block edge); None if it meets none of them."""
+    best = None
+    for line in lines:
+        hit = path.intersection(line)
+        if hit.is_empty:
+            continue
+        points = shapely.points(shapely.get_coordinates(hit))
+        along = float(shapely.line_locate_point(path, points).min())
+        if (not skip_start or along > 1e-6) and (best is None or along < best[0]):
+            best = (along, line)
+    return best
 
 
 def _axes(face: Polygon):
@@ -413,31 +413,42 @@ def _trace_in_face(face: Polygon, start, d, field: TensorField,
 
     The path is traced in growing chunks and intersected with the boundary once per chunk (a
     shapely call per Euler step would dominate the run time)."""
-    rings = [face.exterior, *face.interiors]  # inner rings: blocks hanging inside on bridges
-    x, y = float(start[0]), float(start[1])
-    pts = [(x, y)]
+    kept = []  # the path before the chunk being checked
+    last = np.array([float(start[0]), float(start[1])])
     d = np.asarray(d, float)
     for chunk in (4, 8, 16, 32, 64, 128):
-        first = len(pts) - 1
-        steps, d = follow_field(field, (x, y), d, chunk, math.radians(8.0), STEP)
-        pts.extend(steps.tolist())
-        x, y = pts[-1]
-        path = LineString(np.asarray(pts[first:]))  # an array: no per-point conversion
-        lines = rings + ([roads.lines[key] for key in roads.near(path, 0.0)] if roads else [])
-        best = None
-        for line in _crossed(path, lines):
-            hit = path.intersection(line)
-            if hit.is_empty:
-                continue
-            along = min(path.project(g) for g in shapely.get_parts(shapely.points(
-                shapely.get_coordinates(hit))))
-            if (first > 0 or along > 1e-6) and (best is None or along < best[0]):
-                best = (along, line)
+        steps, d = follow_field(field, last, d, chunk, math.radians(8.0), STEP)
+        chunk_xy = np.vstack([last, steps])
+        path = LineString(chunk_xy)
+        best = _first_hit(path, _crossed_lines(path, face, roads), skip_start=not kept)
         if best is not None:
-            head = shapely.ops.substring(path, 0, best[0])
-            return (np.vstack([np.asarray(pts[:first]).reshape(-1, 2), np.asarray(head.coords)]),
-                    best[1])
+            return np.vstack([*kept, _substring(path, 0.0, best[0])]), best[1]
+        kept.append(chunk_xy[:-1])
+        last = steps[-1]
     return None
+
+
+def _substring(line: LineString, start: float, end: float) -> np.ndarray:
+    """The coordinates of ``shapely.ops.substring(line, start, end)`` for ``0 <= start <=
+    end``: the same steps and float operations, without its generic checks and per-vertex
+    shapely objects (which cost more than the rest of a fill road's tracing)."""
+    if not 0 <= start <= end:
+        return np.asarray(shapely.ops.substring(line, start, end).coords)
+    length = line.length
+    if start == end or start >= length:
+        return shapely.get_coordinates(line.interpolate(min(start, length)))
+    ends = shapely.get_coordinates(shapely.line_interpolate_point(line, [start, end]))
+    vertices = [ends[0]]
+    coords = shapely.get_coordinates(line).tolist()
+    current = 0
+    for p1, p2 in itertools.pairwise(coords):
+        if start < current < end:
+            vertices.append(p1)
+        elif current >= end:
+            break
+        current += ((p2[0] - p1[0]) ** 2 + (p2[1] - p1[1]) ** 2) ** 0.5
+    vertices.append(ends[1])
+    return np.array(vertices)
 
 
 def _ends_ok(face: Polygon, nodes: _NodePoints, chord, min_edge: float, min_angle: float,
@@ -472,7 +483,7 @@ def insert_chord(
     end nodes, or None when refused."""
     line = LineString(chord)
     if start_node is not None:  # the junction's own roads meet the chord's first metres
-        line = shapely.ops.substring(line, 2.0, line.length)
+        line = LineString(_substring(line, 2.0, line.length))
     touching = index.near(line, 0.5)
     if not 1 <= len(touching) <= (1 if start_node is not None else 2):
         return None
@@ -512,14 +523,14 @@ def split_edge_at(G: nx.Graph, edge, point, tolerance: float, index: EdgeIndex):
     if line.length - s < tolerance:
         return v
     cls = G.edges[u, v]["road_class"]
-    first = shapely.ops.substring(line, 0, s)
-    second = shapely.ops.substring(line, s, line.length)
+    first = _substring(line, 0, s)
+    second = _substring(line, s, line.length)
     node = index.new_node_id()
-    G.add_node(node, xy=tuple(np.asarray(second.coords[0])))
+    G.add_node(node, xy=tuple(second[0]))
     index.remove(u, v)
     G.remove_edge(u, v)
-    add_road(G, u, node, np.asarray(first.coords), cls)
-    add_road(G, node, v, np.asarray(second.coords), cls)
+    add_road(G, u, node, first, cls)
+    add_road(G, node, v, second, cls)
     index.add(u, node)
     index.add(node, v)
     return node
