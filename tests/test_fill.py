@@ -65,3 +65,21 @@ def test_nodes_near_a_long_ring_are_found_as_by_measuring_every_one():
     direct = np.flatnonzero(shapely.distance(face.exterior, shapely.points(pts)) <= 0.01)
     assert 0 < len(direct) < len(pts)
     assert [n for n, _ in nodes.on_boundary(face)] == sorted(direct)
+
+
+def test_substring_matches_shapely_bit_for_bit():
+    """The fill's own substring gives shapely.ops.substring's coordinates exactly, for pieces
+    from the start, in the middle, to the end, empty ones and ones past the end."""
+    from roadweaver_sumo.expand.fill import _substring
+
+    rng = np.random.default_rng(1)
+    line = LineString(np.cumsum(rng.normal(size=(40, 2)) * 7.3, axis=0))
+    length = line.length
+    vertex = float(line.project(shapely.Point(line.coords[5])))
+    cases = [(0.0, 13.7), (2.0, length), (vertex, length), (0.0, vertex), (5.5, 5.5),
+             (0.0, 0.0), (length, length), (length + 1.0, length + 2.0), (3.0, 1.0)]
+    cases += [tuple(sorted(rng.uniform(0, length, 2))) for _ in range(50)]
+    for start, end in cases:
+        expected = np.asarray(shapely.ops.substring(line, start, end).coords)
+        got = _substring(line, start, end)
+        assert got.shape == expected.shape and got.tobytes() == expected.tobytes(), (start, end)
