@@ -23,8 +23,14 @@ class EdgeIndex:
         self.cell = cell
         self.cells: dict[tuple[int, int], set] = defaultdict(set)
         self.lines: dict[tuple, LineString] = {}
-        for u, v in G.edges:
-            self.add(u, v)
+        edges = list(G.edges)
+        if edges:  # all lines made in one call (one each took most of the build)
+            coords = [G.edges[e]["coords"] for e in edges]
+            which = np.repeat(np.arange(len(coords)), [len(c) for c in coords])
+            lines = shapely.linestrings(np.concatenate(coords), indices=which)
+            for (u, v), line, bounds in zip(edges, lines, shapely.bounds(lines).tolist(),
+                                            strict=True):
+                self._insert(edge_key(u, v), line, bounds)
         self._top = max(G.nodes, default=-1)
 
     def new_node_id(self) -> int:
@@ -45,10 +51,12 @@ class EdgeIndex:
                 yield cx, cy
 
     def add(self, u, v) -> None:
-        key = edge_key(u, v)
         line = LineString(self.G.edges[u, v]["coords"])
+        self._insert(edge_key(u, v), line, line.bounds)
+
+    def _insert(self, key, line: LineString, bounds) -> None:
         self.lines[key] = line
-        for c in self._cells(line.bounds):
+        for c in self._cells(bounds):
             self.cells[c].add(key)
 
     def remove(self, u, v) -> None:

@@ -173,6 +173,7 @@ class _NodePoints:
         self.tree = cKDTree(np.array([G.nodes[n]["xy"] for n in G.nodes]).reshape(-1, 2))
         self.added = np.zeros((0, 2))
         self.by_xy = {tuple(G.nodes[n]["xy"]): n for n in G.nodes}
+        self.continuations = {}
 
     def update(self) -> None:
         """Take in the nodes added to ``G`` since the last call (new nodes get the next ids and
@@ -215,6 +216,15 @@ class _NodePoints:
         found = {self.by_xy[(float(x), float(y))] for x, y in pts[close]}
         return sorted((n, np.asarray(self.G.nodes[n]["xy"], float)) for n in found)
 
+    def continuation(self, node) -> np.ndarray | None:
+        """:func:`_continuation` of ``node``, kept for its roads as they are: a junction lies on
+        the edges of several blocks, and only a new road at it or a split of one of its roads
+        (which changes its neighbours) changes its answer."""
+        key = (node, *sorted(self.G.neighbors(node)))
+        if key not in self.continuations:
+            self.continuations[key] = _continuation(self.G, node)
+        return self.continuations[key]
+
     def any_within(self, p: np.ndarray, radius: float) -> bool:
         """Whether a node lies closer than ``radius`` to ``p`` (exactly as an np.hypot test over
         all nodes: the tree only picks the candidates, with a margin)."""
@@ -246,7 +256,7 @@ def split_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rng, min_
     for attempt in range(6):
         shift = 0.0 if attempt == 0 else rng.uniform(-0.3, 0.3) * long_side
         start = centre + shift * along
-        if not face.contains(Point(start)):
+        if not shapely.contains_xy(face, *start):
             continue
         wanted = across if attempt < 4 else along
         d0 = choose_axis(field, start, wanted)
@@ -267,7 +277,7 @@ def scattered_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rng, 
     x0, y0, x1, y1 = face.bounds
     for attempt in range(tries):
         start = np.array([rng.uniform(x0, x1), rng.uniform(y0, y1)])
-        if not face.contains(Point(start)):
+        if not shapely.contains_xy(face, *start):
             continue
         d0 = choose_axis(field, start, np.array([1.0, 0.0]) if attempt % 2 else
                          np.array([0.0, 1.0]))
@@ -290,8 +300,8 @@ def continuation_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rn
     for node, xy in nodes.on_boundary(face):
         if nodes.G.degree(node) != 3:
             continue
-        ahead = _continuation(nodes.G, node)
-        if ahead is None or not face.contains(Point(xy + 2.0 * ahead)):
+        ahead = nodes.continuation(node)
+        if ahead is None or not shapely.contains_xy(face, *(xy + 2.0 * ahead)):
             continue
         off = centre - xy
         miss = abs(float(ahead[0] * off[1] - ahead[1] * off[0]))  # centre's distance from the line
@@ -351,11 +361,12 @@ def _straight_in_face(face: Polygon, start, d, roads: EdgeIndex | None):
     """The straight path from ``start`` along ``d`` to the first block edge or road it meets,
     with a point every STEP metres like a traced one, and the line it ends on; None if
     ``start`` is not inside."""
-    if not face.contains(Point(start)):
+    if not shapely.contains_xy(face, *start):
         return None
     x0, y0, x1, y1 = face.bounds
     path = LineString([start, start + 2.0 * (x1 - x0 + y1 - y0) * np.asarray(d, float)])
-    best = _first_hit(path, _crossed_lines(path, face, roads), skip_start=True)
+    rings = [face.exterior, *face.interiors]
+    best = _first_hit(path, _crossed_lines(path, rings, roads), skip_start=True)
     if best is None:
         return None
     along, line = best
@@ -363,12 +374,11 @@ def _straight_in_face(face: Polygon, start, d, roads: EdgeIndex | None):
     return np.asarray(start, float) + np.linspace(0.0, along, steps + 1)[:, None] * d, line
 
 
-def _crossed_lines(path: LineString, face: Polygon, roads: EdgeIndex | None) -> list:
-    """The rings of ``face`` (inner rings, holes, stop a road too), then the roads in
+def _crossed_lines(path: LineString, rings: list, roads: EdgeIndex | None) -> list:
+    """The ``rings`` of a block (inner rings, holes, stop a road too), then the roads in
     ``roads``, that ``path`` touches or crosses: one prepared predicate call instead of an
     overlay (``intersection``) with each block ring, most of which it misses. (The index
     already tests the roads with the same predicate.)"""
-    rings = [face.exterior, *face.interiors]
     shapely.prepare(path)
     lines = [line for line, hit in zip(rings, shapely.intersects(path, rings), strict=True) if hit]
     return lines + ([roads.lines[key] for key in roads.near(path, 0.0)] if roads else [])
@@ -400,7 +410,7 @@ def _axes(face: Polygon):
     across = np.array([-along[1], along[0]])
     centre = np.asarray(face.representative_point().coords[0])
     centroid = np.asarray(face.centroid.coords[0])
-    if face.contains(Point(centroid)):
+    if shapely.contains_xy(face, *centroid):
         centre = centroid
     return along, across, centre
 
@@ -413,6 +423,7 @@ def _trace_in_face(face: Polygon, start, d, field: TensorField,
 
     The path is traced in growing chunks and intersected with the boundary once per chunk (a
     shapely call per Euler step would dominate the run time)."""
+    rings = [face.exterior, *face.interiors]  # inner rings: blocks hanging inside on bridges
     kept = []  # the path before the chunk being checked
     last = np.array([float(start[0]), float(start[1])])
     d = np.asarray(d, float)
@@ -420,7 +431,7 @@ def _trace_in_face(face: Polygon, start, d, field: TensorField,
         steps, d = follow_field(field, last, d, chunk, math.radians(8.0), STEP)
         chunk_xy = np.vstack([last, steps])
         path = LineString(chunk_xy)
-        best = _first_hit(path, _crossed_lines(path, face, roads), skip_start=not kept)
+        best = _first_hit(path, _crossed_lines(path, rings, roads), skip_start=not kept)
         if best is not None:
             return np.vstack([*kept, _substring(path, 0.0, best[0])]), best[1]
         kept.append(chunk_xy[:-1])
@@ -461,10 +472,12 @@ def _ends_ok(face: Polygon, nodes: _NodePoints, chord, min_edge: float, min_angl
     for end, inner in ends if check_start else ends[1:]:
         if nodes.any_within(end, 2.5 * min_edge):
             return False
-        ring = min([face.exterior, *face.interiors, *met], key=lambda r: r.distance(Point(end)))
-        s = ring.project(Point(end))
-        a = np.asarray(ring.interpolate(max(s - 1.0, 0)).coords[0])
-        b = np.asarray(ring.interpolate(min(s + 1.0, ring.length)).coords[0])
+        point = Point(end)
+        lines = [face.exterior, *face.interiors, *met]
+        ring = lines[int(np.argmin(shapely.distance(lines, point)))]  # the first nearest
+        s = ring.project(point)
+        a, b = shapely.get_coordinates(shapely.line_interpolate_point(
+            ring, [max(s - 1.0, 0), min(s + 1.0, ring.length)]))
         tangent = (b - a) / max(np.hypot(*(b - a)), 1e-9)
         road = (inner - end) / max(np.hypot(*(inner - end)), 1e-9)
         if abs(float(tangent @ road)) > math.cos(math.radians(min_angle)):
