@@ -250,9 +250,7 @@ def split_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rng, min_
     """A local road across ``face``: traced both ways from an interior point along the tensor
     axis that cuts the face's long side, clipped where it first leaves the face. A few start
     points and both axes are tried before the block is given up."""
-    along, across, centre = _axes(face)
-    long_side = np.hypot(*np.diff(np.asarray(face.minimum_rotated_rectangle.exterior.coords)[:3],
-                                  axis=0).T).max()
+    along, across, centre, long_side = _axes(face)
     for attempt in range(6):
         shift = 0.0 if attempt == 0 else rng.uniform(-0.3, 0.3) * long_side
         start = centre + shift * along
@@ -295,7 +293,7 @@ def continuation_chord(face: Polygon, nodes: _NodePoints, field: TensorField, rn
     block's edge whose stem lies outside the block, straight on through the junction and then
     along the field to the far side. Of the T-junctions whose continuation points into the
     block, the one aimed closest to the block's centre is tried first."""
-    _, _, centre = _axes(face)
+    centre = _centre(face)
     candidates = []
     for node, xy in nodes.on_boundary(face):
         if nodes.G.degree(node) != 3:
@@ -338,7 +336,7 @@ def straight_chord(face: Polygon, nodes: _NodePoints, field, rng, min_edge, min_
     for a block that no field-following road crosses (near the centre of a radial field the
     streamlines circle, end on the side they started from, or never reach the block edge). It
     ends on the first road it meets, a dead end inside the block included (``roads``)."""
-    along, across, centre = _axes(face)
+    along, across, centre, _ = _axes(face)
     for wanted in (across, along):
         halves = [_straight_in_face(face, centre, d, roads) for d in (wanted, -wanted)]
         met = [line for _, line in filter(None, halves)]
@@ -401,18 +399,23 @@ def _first_hit(path: LineString, lines: list, skip_start: bool) -> tuple | None:
 
 
 def _axes(face: Polygon):
-    """Unit vectors along and across the long side of the face's minimum rotated rectangle, and
-    a point inside the face (its centroid where that is inside)."""
+    """Unit vectors along and across the long side of the face's minimum rotated rectangle, a
+    point inside the face (:func:`_centre`) and the long side's length."""
     rc = np.asarray(face.minimum_rotated_rectangle.exterior.coords)
     sides = np.diff(rc[:3], axis=0)
-    long_side = sides[int(np.argmax(np.hypot(*sides.T)))]
+    lengths = np.hypot(*sides.T)
+    long_side = sides[int(np.argmax(lengths))]
     along = long_side / max(np.hypot(*long_side), 1e-9)
     across = np.array([-along[1], along[0]])
-    centre = np.asarray(face.representative_point().coords[0])
+    return along, across, _centre(face), lengths.max()
+
+
+def _centre(face: Polygon) -> np.ndarray:
+    """A point inside the face: its centroid where that is inside."""
     centroid = np.asarray(face.centroid.coords[0])
     if shapely.contains_xy(face, *centroid):
-        centre = centroid
-    return along, across, centre
+        return centroid
+    return np.asarray(face.representative_point().coords[0])
 
 
 def _trace_in_face(face: Polygon, start, d, field: TensorField,
