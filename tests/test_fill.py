@@ -77,7 +77,8 @@ def test_substring_matches_shapely_bit_for_bit():
     length = line.length
     vertex = float(line.project(shapely.Point(line.coords[5])))
     cases = [(0.0, 13.7), (2.0, length), (vertex, length), (0.0, vertex), (5.5, 5.5),
-             (0.0, 0.0), (length, length), (length + 1.0, length + 2.0), (3.0, 1.0)]
+             (0.0, 0.0), (length, length), (length + 1.0, length + 2.0), (length + 1.0, length + 1.0),
+             (3.0, 1.0)]
     cases += [tuple(sorted(rng.uniform(0, length, 2))) for _ in range(50)]
     for start, end in cases:
         expected = np.asarray(shapely.ops.substring(line, start, end).coords)

@@ -449,8 +449,8 @@ def _substring(line: LineString, start: float, end: float) -> np.ndarray:
     if not 0 <= start <= end:
         return np.asarray(shapely.ops.substring(line, start, end).coords)
     length = line.length
-    if start == end or start >= length:
-        return shapely.get_coordinates(line.interpolate(min(start, length)))
+    if start == end or start >= length:  # a point
+        return shapely.get_coordinates(line.interpolate(start if start == end else length))
     ends = shapely.get_coordinates(shapely.line_interpolate_point(line, [start, end]))
     vertices = [ends[0]]
     coords = shapely.get_coordinates(line).tolist()
