@@ -10,6 +10,8 @@ import numpy as np
 import shapely
 from shapely.geometry import LineString
 
+_NO_ROADS = frozenset()  # what a cell no road overlaps holds
+
 
 def edge_key(u, v) -> tuple:
     return (u, v) if u <= v else (v, u)
@@ -68,8 +70,8 @@ class EdgeIndex:
     def near(self, geom, distance: float) -> list[tuple]:
         """Roads within ``distance`` of ``geom``, nearest first (ties by id: deterministic)."""
         found: set = set()
-        for c in self._cells(geom.bounds, pad=distance):
-            found |= self.cells.get(c, set())
+        for c in self._cells(shapely.bounds(geom).tolist(), pad=distance):
+            found |= self.cells.get(c, _NO_ROADS)
         keys = sorted(found)
         if not keys:
             return []

@@ -432,8 +432,8 @@ def _trace_in_face(face: Polygon, start, d, field: TensorField,
     d = np.asarray(d, float)
     for chunk in (4, 8, 16, 32, 64, 128):
         steps, d = follow_field(field, last, d, chunk, math.radians(8.0), STEP)
-        chunk_xy = np.vstack([last, steps])
-        path = LineString(chunk_xy)
+        chunk_xy = np.concatenate([last[None], steps])
+        path = shapely.linestrings(chunk_xy)
         best = _first_hit(path, _crossed_lines(path, rings, roads), skip_start=not kept)
         if best is not None:
             return np.vstack([*kept, _substring(path, 0.0, best[0])]), best[1]
