@@ -84,3 +84,17 @@ def test_substring_matches_shapely_bit_for_bit():
         expected = np.asarray(shapely.ops.substring(line, start, end).coords)
         got = _substring(line, start, end)
         assert got.shape == expected.shape and got.tobytes() == expected.tobytes(), (start, end)
+
+
+def test_pieces_of_a_line_are_its_substrings():
+    """Cutting a road in two at once gives exactly the two substrings (split_edge_at)."""
+    from roadweaver_sumo.expand.fill import _pieces
+
+    rng = np.random.default_rng(2)
+    line = LineString(np.cumsum(rng.normal(size=(60, 2)) * 9.1, axis=0))
+    vertex = float(line.project(shapely.Point(line.coords[7])))
+    for s in [vertex, 12.0, line.length / 2, *rng.uniform(1.0, line.length - 1.0, 30)]:
+        pieces = _pieces(line, [0, s, line.length])
+        for piece, (a, b) in zip(pieces, [(0, s), (s, line.length)], strict=True):
+            expected = np.asarray(shapely.ops.substring(line, a, b).coords)
+            assert piece.shape == expected.shape and piece.tobytes() == expected.tobytes()

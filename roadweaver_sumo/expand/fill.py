@@ -451,18 +451,27 @@ def _substring(line: LineString, start: float, end: float) -> np.ndarray:
     length = line.length
     if start == end or start >= length:  # a point
         return shapely.get_coordinates(line.interpolate(start if start == end else length))
-    ends = shapely.get_coordinates(shapely.line_interpolate_point(line, [start, end]))
-    vertices = [ends[0]]
+    return _pieces(line, [start, end])[0]
+
+
+def _pieces(line: LineString, cuts: list) -> list[np.ndarray]:
+    """:func:`_substring` between each two consecutive of the rising distances ``cuts`` (the
+    first below the line's length) in one walk along the line: shapely's vertex walk adds up
+    the same segment lengths in the same order for every piece."""
+    ends = shapely.get_coordinates(shapely.line_interpolate_point(line, cuts))
+    inner = [[] for _ in cuts[1:]]
     coords = shapely.get_coordinates(line).tolist()
     current = 0
+    k = 0  # the piece whose distances current has not yet passed
     for p1, p2 in itertools.pairwise(coords):
-        if start < current < end:
-            vertices.append(p1)
-        elif current >= end:
+        if current >= cuts[-1]:
             break
+        while current >= cuts[k + 1]:
+            k += 1
+        if cuts[k] < current:
+            inner[k].append(p1)
         current += ((p2[0] - p1[0]) ** 2 + (p2[1] - p1[1]) ** 2) ** 0.5
-    vertices.append(ends[1])
-    return np.array(vertices)
+    return [np.array([ends[k], *inner[k], ends[k + 1]]) for k in range(len(inner))]
 
 
 def _ends_ok(face: Polygon, nodes: _NodePoints, chord, min_edge: float, min_angle: float,
@@ -539,8 +548,7 @@ def split_edge_at(G: nx.Graph, edge, point, tolerance: float, index: EdgeIndex):
     if line.length - s < tolerance:
         return v
     cls = G.edges[u, v]["road_class"]
-    first = _substring(line, 0, s)
-    second = _substring(line, s, line.length)
+    first, second = _pieces(line, [0, s, line.length])  # both substrings, one walk
     node = index.new_node_id()
     G.add_node(node, xy=tuple(second[0]))
     index.remove(u, v)
