@@ -46,6 +46,18 @@ def add_road(G: nx.Graph, u, v, coords, road_class: str) -> None:
     G.add_edge(u, v, coords=coords, start=u, road_class=road_class)
 
 
+def edge_list(G: nx.Graph) -> list[tuple]:
+    """``list(G.edges(data=True))``, the same triples in the same order, built straight from
+    the adjacency dicts: networkx's edge view counts the edges by walking them all before
+    the list walks them again, a call per edge each time (clean-up asks after every pass)."""
+    seen: set = set()
+    edges: list = []
+    for u, nbrs in G.adjacency():
+        edges.extend([(u, v, data) for v, data in nbrs.items() if v not in seen])
+        seen.add(u)
+    return edges
+
+
 def edge_length(G: nx.Graph, u, v) -> float:
     """Length of the polyline of edge (u, v) in metres. (``np.diff`` computes the same steps;
     clean-up and the fill ask for 100,000 lengths on a 10 km map, and its call costs more than

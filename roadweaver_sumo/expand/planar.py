@@ -18,9 +18,9 @@ import shapely
 import shapely.ops
 from scipy.spatial import cKDTree
 
-from ..compiled import F8, F8_2D_ANY, compiled
+from ..compiled import F8, F8_1D, F8_2D, F8_2D_ANY, I8_1D, compiled
 from ..metrics import SHARP_BEND_DEG, SHARP_BEND_REACH_M, sharp_bend_at, sharp_bend_roads
-from ..roadgraph import ROAD_CLASSES, add_road, edge_coords, edge_length, new_road_graph
+from ..roadgraph import ROAD_CLASSES, add_road, edge_coords, edge_length, edge_list, new_road_graph
 from ..skeleton.model import PERIMETER_INSET
 
 GRID = 0.01  # noding precision, metres
@@ -32,7 +32,13 @@ def higher_class(a: str, b: str) -> str:
 
 
 def build_planar_graph(roads: list[tuple[np.ndarray, str]], width: float, height: float):
-    """Node all polylines against each other and build the graph of the pieces."""
+    """Node all polylines against each other and build the graph of the pieces.
+
+    Each piece becomes the road between the nodes at its rounded ends, in order of (first
+    point, last point, length); a second piece between the same two nodes, or one closing a
+    loop, goes through :func:`add_piece`. Everything up to that is done in bulk over all
+    pieces: a 10 km map has 5,000 of them, and the graph is rebuilt after every reconnection
+    and fill round."""
     G = new_road_graph(width, height)
     kept = [(np.asarray(c, float).reshape(-1, 2), cls) for c, cls in roads if len(c) >= 2]
     if not kept:
@@ -40,51 +46,89 @@ def build_planar_graph(roads: list[tuple[np.ndarray, str]], width: float, height
     sizes = [len(c) for c, _ in kept]
     lines = shapely.linestrings(np.concatenate([c for c, _ in kept]),
                                 indices=np.repeat(np.arange(len(kept)), sizes))  # one call
-    kept = [(c, cls, ln) for (c, cls), ln, length in zip(
-        kept, lines.tolist(), shapely.length(lines).tolist(), strict=True) if length > GRID]
+    long_enough = shapely.length(lines) > GRID
+    kept = [road for road, ok in zip(kept, long_enough.tolist(), strict=True) if ok]
     if not kept:
         return G
-    noded = shapely.union_all([ln for _, _, ln in kept], grid_size=GRID)
-    pieces = np.array(list(getattr(noded, "geoms", [noded])), dtype=object)
-    coords = _coords_of(pieces)
-    lengths = shapely.length(pieces).tolist()
-    order = sorted(range(len(pieces)),
-                   key=lambda k: (tuple(coords[k][0]), tuple(coords[k][-1]), lengths[k]))
-    # The road class of every piece: the best class of the polylines passing within 5 cm of
-    # its middle, from one bulk query against their segments (a tree of whole polylines would
-    # measure every piece against each map-long arterial, vertex by vertex).
+    noded = shapely.union_all(lines[long_enough], grid_size=GRID)
+    pieces = shapely.get_parts(noded)
+    xy, owner = shapely.get_coordinates(pieces, return_index=True)
+    first = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+    last = np.r_[first[1:], len(owner)] - 1
+    lengths = shapely.length(pieces)
+    order = np.lexsort((lengths, xy[last, 1], xy[last, 0], xy[first, 1], xy[first, 0]))
+    classes = _piece_classes(pieces, kept)
+    ends = np.empty((2 * len(pieces), 2))  # start and end of each piece, interleaved
+    ends[0::2], ends[1::2] = _rounded(xy[first]), _rounded(xy[last])
+    node_of, node_xy = _unique_points(ends)
+    for nid, key in enumerate(node_xy):
+        G.add_node(nid, xy=key)
+    snapped = xy.copy()  # add_road's snapping of each road's ends onto its nodes
+    snapped[first] = np.array(node_xy)[node_of[0::2]]
+    snapped[last] = np.array(node_xy)[node_of[1::2]]
+    bounds = np.r_[first, len(owner)].tolist()
+    seen: set = set()
+    batch = []
+    for k in order.tolist():
+        u, v = int(node_of[2 * k]), int(node_of[2 * k + 1])
+        a, b = bounds[k], bounds[k + 1]
+        pair = (u, v) if u < v else (v, u)
+        if u != v and pair not in seen:
+            seen.add(pair)
+            batch.append((u, v, {"coords": snapped[a:b].copy(), "start": u,
+                                 "road_class": classes[k]}))
+            continue
+        G.add_edges_from(batch)
+        batch = []
+        add_piece(G, u, v, xy[a:b].tolist(), classes[k])
+    G.add_edges_from(batch)
+    return G
+
+
+def _piece_classes(pieces: np.ndarray, kept: list) -> list[str]:
+    """The road class of every piece: the best class of the polylines passing within 5 cm of
+    its middle, from one bulk query against their segments (a tree of whole polylines would
+    measure every piece against each map-long arterial, vertex by vertex)."""
     mids = shapely.line_interpolate_point(pieces, 0.5, normalized=True)
-    points = np.concatenate([c for c, _, _ in kept])
-    point_owner = np.repeat(np.arange(len(kept)), [len(c) for c, _, _ in kept])
+    points = np.concatenate([c for c, _ in kept])
+    point_owner = np.repeat(np.arange(len(kept)), [len(c) for c, _ in kept])
     inside = point_owner[1:] == point_owner[:-1]  # steps between two polylines are not segments
     segments = shapely.linestrings(np.stack([points[:-1], points[1:]], axis=1)[inside])
     owner = point_owner[1:][inside]
     which, near = shapely.STRtree(segments).query(mids, predicate="dwithin", distance=0.05)
-    classes = ["local"] * len(pieces)
-    for k, line in zip(which.tolist(), owner[near].tolist(), strict=True):
-        classes[k] = higher_class(classes[k], kept[line][1])
-    ends = [((round(c[0][0], 2), round(c[0][1], 2)), (round(c[-1][0], 2), round(c[-1][1], 2)))
-            for c in coords]
-    keys = dict.fromkeys(key for pair in ends for key in pair)
-    for nid, key in enumerate(sorted(keys)):
-        keys[key] = nid
-        G.add_node(nid, xy=key)
-    for k in order:
-        add_piece(G, keys[ends[k][0]], keys[ends[k][1]], coords[k], classes[k])
-    return G
+    rank = np.array([CLASS_RANK[cls] for _, cls in kept])
+    best = np.zeros(len(pieces), dtype=int)  # local, where no polyline passes
+    np.maximum.at(best, which, rank[owner[near]])
+    names = sorted(CLASS_RANK, key=CLASS_RANK.__getitem__)
+    return [names[r] for r in best.tolist()]
 
 
-def _coords_of(lines: np.ndarray) -> list[list]:
-    """The vertices of each line as lists of [x, y] floats, from one shapely call."""
-    xy, owner = shapely.get_coordinates(lines, return_index=True)
-    cuts = np.flatnonzero(np.diff(owner)) + 1
-    return [part.tolist() for part in np.split(xy, cuts)]
+def _rounded(points: np.ndarray) -> np.ndarray:
+    """Python's ``round(x, 2)`` of every coordinate. The union's vertices lie on the 0.01 grid
+    already (``rint(100 x) / 100 == x``: x is the double nearest k/100, which ``round`` keeps);
+    any other goes through ``round`` itself."""
+    off = np.rint(points * 100) / 100 != points
+    out = points.copy()
+    out[off] = [round(x, 2) for x in points[off].tolist()]
+    return out
+
+
+def _unique_points(points: np.ndarray) -> tuple[np.ndarray, list[tuple]]:
+    """Number the distinct points in (x, y) order: each point's number, and each number's
+    point (as Python floats, the first of equal ones: ``sorted(dict.fromkeys(...))``)."""
+    order = np.lexsort((points[:, 1], points[:, 0]))  # stable: equal points keep their order
+    ranked = points[order]
+    new = np.r_[True, (ranked[1:] != ranked[:-1]).any(axis=1)]
+    number = np.empty(len(points), dtype=int)
+    number[order] = np.cumsum(new) - 1
+    return number, [tuple(p) for p in ranked[new].tolist()]
 
 
 def add_piece(G: nx.Graph, u: int, v: int, coords, cls: str) -> None:
     """Add a road u-v. A second road between the same nodes gets a shape node in its middle, a
     closed loop two, so the graph stays simple (SUMO and the lane builder need distinct node
-    pairs)."""
+    pairs). The nodes of ``G`` are numbered 0..n-1, as :func:`build_planar_graph` numbers
+    them: a shape node is number n."""
     if u != v and not G.has_edge(u, v):
         add_road(G, u, v, coords, cls)
         return
@@ -93,7 +137,7 @@ def add_piece(G: nx.Graph, u: int, v: int, coords, cls: str) -> None:
     ends = [u]
     for frac in cuts:
         p = line.interpolate(frac, normalized=True)
-        m = max(G.nodes) + 1
+        m = G.number_of_nodes()
         G.add_node(m, xy=(float(p.x), float(p.y)))
         ends.append(m)
     ends.append(v)
@@ -327,27 +371,95 @@ def remove_sharp_angles(G: nx.Graph, min_angle_deg: float, cache: dict | None = 
     hairpin whose lanes fold over each other (a learned map had one 3 m from its own junction,
     and a car hit).
 
-    Whether a node has a pair to drop depends on its own roads alone, so a sweep visits only
-    the nodes that lost a road since they were last looked at: every other node would find
-    nothing again."""
+    Whether a node has a pair to drop depends on its own roads alone, so the first sweep
+    visits only the nodes that may have one (:func:`_maybe_sharp_nodes`), and each later one
+    only the nodes that lost a road since they were last looked at: every other node would
+    find nothing."""
     limit = math.radians(min_angle_deg)
     hairpin = math.radians(max(min_angle_deg, HAIRPIN_ANGLE))
-    todo = sorted(G.nodes)  # a sorted list is a heap
+
+    def visit(n):
+        road = _sharp_pair_road(G, n, limit, hairpin, cache)
+        if road is None:
+            return ()
+        G.remove_edge(*road)
+        return road
+
+    _sweep(_maybe_sharp_nodes(G, limit, hairpin), visit)
+
+
+def _sweep(nodes, visit) -> None:
+    """Visit ``nodes`` in order, and again every node that ``visit`` (which returns the nodes
+    whose roads it changed) touches: later in the same sweep if it comes after the node
+    visited, else in the next sweep; until a sweep touches no node it already passed."""
+    todo = sorted(nodes)  # a sorted list is a heap
     while todo:
         queued, again = set(todo), set()
         while todo:
             n = heapq.heappop(todo)
-            road = _sharp_pair_road(G, n, limit, hairpin, cache)
-            if road is None:
-                continue
-            G.remove_edge(*road)
-            for m in road:
+            for m in visit(n):
                 if m <= n:
                     again.add(m)  # already visited in this sweep: the next one
                 elif m not in queued:
                     heapq.heappush(todo, m)
                     queued.add(m)
         todo = sorted(again)
+
+
+def _maybe_sharp_nodes(G: nx.Graph, limit: float, hairpin: float) -> list:
+    """The nodes that may have a pair of roads for :func:`_sharp_pair_road` to drop: every
+    road's bearings at both ends measured in one compiled pass (the same steps as
+    :func:`departure_angles`, compared with a margin, so a node can only be looked at
+    needlessly)."""
+    edges = edge_list(G)
+    if not edges:
+        return []
+    coords = [data["coords"] for _, _, data in edges]
+    offsets = np.r_[0, np.cumsum([len(c) for c in coords])]
+    points = np.ascontiguousarray(np.concatenate(coords), dtype=np.float64)
+    starts = [data["start"] for _, _, data in edges]
+    node = np.array(starts + [v if s == u else u for (u, v, _), s in zip(edges, starts,
+                                                                         strict=True)])
+    order = np.argsort(node, kind="stable")
+    head = np.flatnonzero(np.r_[True, node[order][1:] != node[order][:-1]])
+    bounds = np.r_[head, len(node)]
+    wide, near = (_tightest(bounds, np.concatenate(_departures(points, offsets, probe))[order])
+                  for probe in (HAIRPIN_PROBES[1], HAIRPIN_PROBES[0]))
+    degree = np.diff(bounds)
+    margin = 1e-9
+    sharp = ((degree >= 3) & (wide < limit + margin)) | (
+        (degree == 2) & (np.minimum(wide, near) < hairpin + margin))
+    return node[order[head[sharp]]].tolist()
+
+
+@compiled(F8_1D(I8_1D, F8_1D))
+def _tightest(bounds, bearing):
+    """Per node (its roads' bearings ``bearing[bounds[k]:bounds[k + 1]]``), the smallest
+    angle from one road to the next round it (2π at a dead end)."""
+    out = np.empty(len(bounds) - 1)
+    for k in range(len(bounds) - 1):
+        b = np.sort(bearing[bounds[k]:bounds[k + 1]])
+        tightest = b[0] - b[-1] + 2 * math.pi
+        for i in range(len(b) - 1):
+            tightest = min(tightest, b[i + 1] - b[i])
+        out[k] = tightest
+    return out
+
+
+@compiled(nb.types.UniTuple(F8_1D, 2)(F8_2D, I8_1D, F8))
+def _departures(points, offsets, probe):
+    """The bearing of every road (``points[offsets[k]:offsets[k + 1]]``) ``probe`` metres out
+    from its first point, and from its last point, as :func:`departure_angles` measures."""
+    n = len(offsets) - 1
+    ahead, back = np.empty(n), np.empty(n)
+    for k in range(n):
+        c = points[offsets[k]:offsets[k + 1]]
+        qx, qy = _point_along_steps(c, probe)
+        ahead[k] = math.atan2(qy - c[0, 1], qx - c[0, 0])
+        r = c[::-1]
+        qx, qy = _point_along_steps(r, probe)
+        back[k] = math.atan2(qy - r[0, 1], qx - r[0, 0])
+    return ahead, back
 
 
 def _sharp_pair_road(G: nx.Graph, n: int, limit: float, hairpin: float,
@@ -375,8 +487,15 @@ def _edge_weight(G, u, v):
 
 
 def on_perimeter(G: nx.Graph, u: int, v: int, tolerance: float = 1.0) -> bool:
-    """Whether road u-v runs along the perimeter ring road (``skeleton.model.perimeter``)."""
+    """Whether road u-v runs along the perimeter ring road (``skeleton.model.perimeter``).
+
+    Most roads are nowhere near it: their first point, measured first in plain floats (the
+    same operations, so the same bits), settles them without the vectorised check."""
     c = np.asarray(G.edges[u, v]["coords"], dtype=float)
+    x, y = c[0].tolist()
+    lo, hx, hy = PERIMETER_INSET, G.graph["width"] - PERIMETER_INSET, G.graph["height"] - PERIMETER_INSET
+    if not min(abs(x - lo), abs(y - lo), abs(x - hx), abs(y - hy)) < tolerance:
+        return False
     return bool((_perimeter_offset(G, c) < tolerance).all())
 
 
@@ -402,24 +521,28 @@ def _ring_nodes(G: nx.Graph, tolerance: float = 1.0) -> set:
 
 def prune_stubs(G: nx.Graph, max_length: float, margin: float) -> None:
     """Remove dead-end roads shorter than ``max_length`` or ending within ``margin`` of the map
-    border (roads cut off by the border), repeatedly, so chains of stubs go too."""
+    border (roads cut off by the border), and nodes left without a road, sweeping the nodes
+    in order until none is left, so chains of stubs go too.
+
+    Whether a node goes depends on its own roads alone, so a sweep visits only the nodes
+    with at most one road at its start and those that lost one since they were looked at
+    (as :func:`remove_sharp_angles` does)."""
     width, height = G.graph["width"], G.graph["height"]
 
     def at_border(n):
         x, y = G.nodes[n]["xy"]
         return min(x, y, width - x, height - y) < margin
 
-    changed = True
-    while changed:
-        changed = False
-        for n in sorted(G.nodes):
-            if n in G and G.degree(n) == 1:
-                (w,) = G.neighbors(n)
-                if at_border(n) or edge_length(G, n, w) < max_length:
-                    G.remove_node(n)
-                    changed = True
-            elif n in G and G.degree(n) == 0:
-                G.remove_node(n)
+    def visit(n):
+        if n not in G or G.degree(n) > 1:
+            return ()
+        roads = list(G.neighbors(n))
+        if roads and not (at_border(n) or edge_length(G, n, roads[0]) < max_length):
+            return ()
+        G.remove_node(n)
+        return roads  # a lone node goes without another sweep
+
+    _sweep((n for n, degree in G.degree() if degree <= 1), visit)
 
 
 def keep_largest_component(G: nx.Graph) -> None:
