@@ -580,21 +580,41 @@ def round_corners(coords: np.ndarray, max_turn_deg: float, radius: float) -> np.
     turns = turn_angles(coords)
     if turns.max() <= math.radians(max_turn_deg):
         return coords
-    out = [coords[0]]
+    return _filleted(coords, turns, math.radians(max_turn_deg), radius)
+
+
+@compiled(F8_2D(F8_2D_ANY, F8_1D, F8, F8))
+def _filleted(coords, turns, limit, radius):
+    """:func:`round_corners`' fillets, compiled (a learned map's roads have thousands of
+    sharp vertices, a dozen numpy calls each): every float operation as numpy did them,
+    in the same order (``linspace``: i · (1 / (n - 1)), its last point 1), so the same bits."""
+    size = 2
+    for k in range(len(turns)):
+        size += max(3, int(math.degrees(turns[k]) / 10) + 2) if turns[k] > limit else 1
+    out = np.empty((size, 2))
+    out[0] = coords[0]
+    m = 1
     for k in range(1, len(coords) - 1):
-        a, b, c = coords[k - 1], coords[k], coords[k + 1]
-        turn = turns[k - 1]
-        if turn <= math.radians(max_turn_deg):
-            out.append(b)
+        bx, by = coords[k, 0], coords[k, 1]
+        if turns[k - 1] <= limit:
+            out[m, 0], out[m, 1] = bx, by
+            m += 1
             continue
-        ab, bc = np.hypot(*(b - a)), np.hypot(*(c - b))
+        ax, ay, cx, cy = coords[k - 1, 0], coords[k - 1, 1], coords[k + 1, 0], coords[k + 1, 1]
+        ab, bc = math.hypot(bx - ax, by - ay), math.hypot(cx - bx, cy - by)
         r = min(radius, 0.45 * ab, 0.45 * bc)
-        p0 = b + (a - b) * (r / ab)
-        p2 = b + (c - b) * (r / bc)
-        t = np.linspace(0.0, 1.0, max(3, int(math.degrees(turn) / 10) + 2))[:, None]
-        out.extend((1 - t) ** 2 * p0 + 2 * (1 - t) * t * b + t**2 * p2)
-    out.append(coords[-1])
-    return np.asarray(out)
+        p0x, p0y = bx + (ax - bx) * (r / ab), by + (ay - by) * (r / ab)
+        p2x, p2y = bx + (cx - bx) * (r / bc), by + (cy - by) * (r / bc)
+        n = max(3, int(math.degrees(turns[k - 1]) / 10) + 2)
+        step = 1.0 / (n - 1)
+        for i in range(n):
+            t = 1.0 if i == n - 1 else i * step
+            u = 1.0 - t
+            out[m, 0] = u * u * p0x + 2.0 * u * t * bx + t * t * p2x
+            out[m, 1] = u * u * p0y + 2.0 * u * t * by + t * t * p2y
+            m += 1
+    out[m] = coords[-1]
+    return out
 
 
 def smooth_bends(G: nx.Graph, max_turn_deg: float = 30.0, radius: float = 20.0) -> None:
