@@ -58,6 +58,11 @@ def edge_list(G: nx.Graph) -> list[tuple]:
     return edges
 
 
+def sorted_edge_list(G: nx.Graph) -> list[tuple]:
+    """:func:`edge_list` in the order of ``sorted(G.edges)``."""
+    return sorted(edge_list(G), key=lambda e: (e[0], e[1]))
+
+
 def edge_length(G: nx.Graph, u, v) -> float:
     """Length of the polyline of edge (u, v) in metres. (``np.diff`` computes the same steps;
     clean-up and the fill ask for 100,000 lengths on a 10 km map, and its call costs more than

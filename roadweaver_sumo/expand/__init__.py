@@ -6,7 +6,7 @@ import networkx as nx
 
 from ..errors import RoadweaverError
 from ..metrics import road_node_count
-from ..roadgraph import add_road, edge_coords
+from ..roadgraph import add_road, edge_coords, sorted_edge_list
 from ..skeleton import Skeleton
 from ..skeleton.procedural import block_size
 from ..spec import STAGE_FILL, STAGE_GROWTH, ScenarioSpec
@@ -71,7 +71,7 @@ def _check_density(spec: ScenarioSpec, achieved: int) -> None:
 
 
 def _renode(G: nx.Graph, extra: list) -> nx.Graph:
-    roads = [(G.edges[e]["coords"], G.edges[e]["road_class"]) for e in sorted(G.edges)]
+    roads = [(data["coords"], data["road_class"]) for _, _, data in sorted_edge_list(G)]
     return build_planar_graph(roads + extra, G.graph["width"], G.graph["height"])
 
 

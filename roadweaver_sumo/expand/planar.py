@@ -20,7 +20,15 @@ from scipy.spatial import cKDTree
 
 from ..compiled import F8, F8_1D, F8_2D, F8_2D_ANY, I8_1D, compiled
 from ..metrics import SHARP_BEND_DEG, SHARP_BEND_REACH_M, sharp_bend_at, sharp_bend_roads
-from ..roadgraph import ROAD_CLASSES, add_road, edge_coords, edge_length, edge_list, new_road_graph
+from ..roadgraph import (
+    ROAD_CLASSES,
+    add_road,
+    edge_coords,
+    edge_length,
+    edge_list,
+    new_road_graph,
+    sorted_edge_list,
+)
 from ..skeleton.model import PERIMETER_INSET
 
 GRID = 0.01  # noding precision, metres
@@ -43,9 +51,7 @@ def build_planar_graph(roads: list[tuple[np.ndarray, str]], width: float, height
     kept = [(np.asarray(c, float).reshape(-1, 2), cls) for c, cls in roads if len(c) >= 2]
     if not kept:
         return G
-    sizes = [len(c) for c, _ in kept]
-    lines = shapely.linestrings(np.concatenate([c for c, _ in kept]),
-                                indices=np.repeat(np.arange(len(kept)), sizes))  # one call
+    lines = _linestrings([c for c, _ in kept])
     long_enough = shapely.length(lines) > GRID
     kept = [road for road, ok in zip(kept, long_enough.tolist(), strict=True) if ok]
     if not kept:
@@ -83,6 +89,18 @@ def build_planar_graph(roads: list[tuple[np.ndarray, str]], width: float, height
         add_piece(G, u, v, xy[a:b].tolist(), classes[k])
     G.add_edges_from(batch)
     return G
+
+
+def _linestrings(coords: list) -> np.ndarray:
+    """The polylines as LineStrings, from one shapely call."""
+    return shapely.linestrings(np.concatenate(coords),
+                               indices=np.repeat(np.arange(len(coords)), [len(c) for c in coords]))
+
+
+def road_lines(roads: list) -> list:
+    """The polylines of ``roads`` (``(u, v, data)``, as :func:`~roadweaver_sumo.roadgraph.edge_list`
+    gives them) as LineStrings, from one shapely call."""
+    return _linestrings([data["coords"] for _, _, data in roads]).tolist() if roads else []
 
 
 def _piece_classes(pieces: np.ndarray, kept: list) -> list[str]:
@@ -213,9 +231,11 @@ def contract_short_edges(G: nx.Graph, min_length: float,
     changed = True
     while changed:
         changed = False
-        edges = sorted(G.edges)
-        for (u, v), maybe_short in zip(edges, _maybe_shorter(G, edges, longest), strict=True):
-            if not maybe_short or not G.has_edge(u, v):
+        edges = sorted_edge_list(G)
+        for k in np.flatnonzero(_maybe_shorter([data["coords"] for _, _, data in edges],
+                                               longest)).tolist():
+            u, v, _ = edges[k]
+            if not G.has_edge(u, v):
                 continue
             limit = junction_gap if G.degree(u) >= 3 and G.degree(v) >= 3 else min_length
             if edge_length(G, u, v) < max(limit, min_length):
@@ -223,12 +243,11 @@ def contract_short_edges(G: nx.Graph, min_length: float,
                 changed = True
 
 
-def _maybe_shorter(G: nx.Graph, edges: list, length: float) -> np.ndarray:
-    """Per road, whether it may be shorter than ``length``: summed in another order than
+def _maybe_shorter(coords: list, length: float) -> np.ndarray:
+    """Per polyline, whether it may be shorter than ``length``: summed in another order than
     ``edge_length`` sums, so with a margin (a road can only be looked at needlessly)."""
-    if not edges:
+    if not coords:
         return np.zeros(0, dtype=bool)
-    coords = [G.edges[e]["coords"] for e in edges]
     owner = np.repeat(np.arange(len(coords)), [len(c) for c in coords])
     step = np.diff(np.concatenate(coords), axis=0)
     inside = owner[1:] == owner[:-1]  # steps between two roads are not steps
@@ -509,14 +528,15 @@ def _perimeter_offset(G: nx.Graph, c: np.ndarray) -> np.ndarray:
 def _ring_nodes(G: nx.Graph, tolerance: float = 1.0) -> set:
     """The nodes of every road :func:`on_perimeter`, all roads measured in one vectorised
     pass (one call per road cost 80 ms on a learned 10 km map)."""
-    edges = list(G.edges)
+    edges = edge_list(G)
     if not edges:
         return set()
-    coords = [np.asarray(G.edges[e]["coords"], dtype=float) for e in edges]
+    coords = [np.asarray(data["coords"], dtype=float) for _, _, data in edges]
     owner = np.repeat(np.arange(len(edges)), [len(c) for c in coords])
     away = ~(_perimeter_offset(G, np.concatenate(coords)) < tolerance)
     along = np.bincount(owner[away], minlength=len(edges)) == 0
-    return {n for e, hit in zip(edges, along.tolist(), strict=True) if hit for n in e}
+    return {n for (u, v, _), hit in zip(edges, along.tolist(), strict=True) if hit
+            for n in (u, v)}
 
 
 def prune_stubs(G: nx.Graph, max_length: float, margin: float) -> None:
@@ -623,18 +643,18 @@ def smooth_bends(G: nx.Graph, max_turn_deg: float = 30.0, radius: float = 20.0) 
     Most roads are smooth already (clean-up runs several times): one vectorised pass finds the
     roads that clearly have no repeated point and no sharp bend, which :func:`round_corners`
     would return unchanged; the others, and any near those limits, go through it."""
-    edges = list(G.edges)
-    if not edges:
+    roads = [data for _, _, data in edge_list(G)]
+    if not roads:
         return
-    for k in np.flatnonzero(_maybe_sharp(edges, G, max_turn_deg)):
-        data = G.edges[edges[k]]
+    for k in np.flatnonzero(_maybe_sharp([data["coords"] for data in roads], max_turn_deg)):
+        data = roads[k]
         data["coords"] = round_corners(data["coords"], max_turn_deg, radius)
 
 
-def _maybe_sharp(edges: list, G: nx.Graph, max_turn_deg: float) -> np.ndarray:
-    """Per road, whether it may have a step of 1e-6 m or less or a vertex turning more than
-    ``max_turn_deg`` (with margins, so that rounding can only add roads, never miss one)."""
-    coords = [G.edges[e]["coords"] for e in edges]
+def _maybe_sharp(coords: list, max_turn_deg: float) -> np.ndarray:
+    """Per polyline, whether it may have a step of 1e-6 m or less or a vertex turning more
+    than ``max_turn_deg`` (with margins, so that rounding can only add roads, never miss
+    one)."""
     owner = np.repeat(np.arange(len(coords)), [len(c) for c in coords])
     step = np.diff(np.concatenate(coords), axis=0)
     inside = owner[1:] == owner[:-1]  # steps between two roads are not steps
@@ -683,8 +703,11 @@ MIN_BLOCK_AREA = 500.0
 def open_tiny_blocks(G: nx.Graph, min_area: float = MIN_BLOCK_AREA) -> int:
     """Remove from each block (face) smaller than ``min_area`` the road least worth keeping
     (:func:`_edge_weight`: never the ring, lowest class, shortest); returns how many went."""
-    edges = sorted(G.edges)
-    lines = [shapely.LineString(G.edges[e]["coords"]) for e in edges]
+    roads = sorted_edge_list(G)
+    if not roads:
+        return 0
+    edges = [(u, v) for u, v, _ in roads]
+    lines = road_lines(roads)
     blocks = [p for p in shapely.get_parts(shapely.polygonize(lines)) if 1.0 < p.area < min_area]
     if not blocks:
         return 0
@@ -713,8 +736,9 @@ def cut_sharp_bends(G: nx.Graph) -> None:
     bent = sharp_bend_roads(G)
     if not bent:
         return
-    edges = sorted(G.edges)
-    tree = shapely.STRtree([shapely.LineString(G.edges[e]["coords"]) for e in edges])
+    roads = sorted_edge_list(G)
+    edges = [(u, v) for u, v, _ in roads]
+    tree = shapely.STRtree(road_lines(roads))
     for u, v in sorted(bent):
         cut = round_corners(cut_across_bends(G.edges[u, v]["coords"]), 30.0, 20.0)
         line = shapely.LineString(cut)

@@ -17,7 +17,8 @@ from skimage.graph import MCP_Geometric
 
 from ..forked import map_shared
 from ..raster import polyline_cells, rasterise_polylines, rasterise_window
-from .planar import components_main_first
+from ..roadgraph import sorted_edge_list
+from .planar import components_main_first, road_lines
 
 #: Fewer dead ends are searched in this process alone: a fork costs more than they take.
 FORK_DEAD_ENDS = 200
@@ -38,8 +39,9 @@ def reconnect_dangles(
     G: nx.Graph, cost: np.ndarray, res: float, radius: float, margin: float
 ) -> list[np.ndarray]:
     """Polylines linking dangling ends to the nearest reachable road (not yet inserted)."""
-    edges = sorted(G.edges)
-    lines = [shapely.LineString(G.edges[e]["coords"]) for e in edges]
+    roads = sorted_edge_list(G)
+    edges = [(u, v) for u, v, _ in roads]
+    lines = road_lines(roads)
     tree = shapely.STRtree(lines)
     position = {e: k for k, e in enumerate(edges)}
     # Each road's cells once: a junction's roads are excluded from several dead ends' searches.
