@@ -34,12 +34,11 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     G = build_planar_graph(roads, spec.width, spec.height)
     stub = 0.5 * block_size(spec.density)
     clean(G, MIN_EDGE, MIN_ANGLE, stub=MIN_EDGE, margin=BORDER_MARGIN, keep_largest=False)
-    links = reconnect_dangles(
-        G, skeleton.cost_map(), skeleton.res, radius=2 * stub, margin=BORDER_MARGIN
-    )
+    cost = skeleton.cost_map()
+    links = reconnect_dangles(G, cost, skeleton.res, radius=2 * stub, margin=BORDER_MARGIN)
     if links:
         G = _renode(G, [(c, "collector") for c in links])
-    links = link_components(G, skeleton.cost_map(), skeleton.res, radius=4 * stub)
+    links = link_components(G, cost, skeleton.res, radius=4 * stub)
     if links:
         G = _renode(G, [(c, "collector") for c in links])
     clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN)

@@ -16,7 +16,7 @@ from shapely.ops import nearest_points
 from skimage.graph import MCP_Geometric
 
 from ..forked import map_shared
-from ..raster import polyline_cells, rasterise_polylines, rasterise_window
+from ..raster import polyline_cells_each, rasterise_polylines, rasterise_window
 from ..roadgraph import sorted_edge_list
 from .planar import components_main_first, road_lines
 
@@ -45,7 +45,7 @@ def reconnect_dangles(
     tree = shapely.STRtree(lines)
     position = {e: k for k, e in enumerate(edges)}
     # Each road's cells once: a junction's roads are excluded from several dead ends' searches.
-    cells = [polyline_cells([G.edges[e]["coords"]], cost.shape, res) for e in edges]
+    cells = polyline_cells_each([data["coords"] for _, _, data in roads], cost.shape, res)
     road_mask = np.zeros(cost.shape, dtype=bool)
     for i, j in cells:
         road_mask[i, j] = True
