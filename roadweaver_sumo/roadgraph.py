@@ -17,6 +17,8 @@ Nodes of degree 2 may exist (to avoid parallel edges or self-loops); the metrics
 
 from __future__ import annotations
 
+from operator import itemgetter
+
 import networkx as nx
 import numpy as np
 from shapely.geometry import LineString
@@ -60,7 +62,7 @@ def edge_list(G: nx.Graph) -> list[tuple]:
 
 def sorted_edge_list(G: nx.Graph) -> list[tuple]:
     """:func:`edge_list` in the order of ``sorted(G.edges)``."""
-    return sorted(edge_list(G), key=lambda e: (e[0], e[1]))
+    return sorted(edge_list(G), key=itemgetter(0, 1))
 
 
 def edge_length(G: nx.Graph, u, v) -> float:

@@ -311,11 +311,12 @@ def dissolve_degree_two(G: nx.Graph, min_angle_deg: float = 0.0,
                         cache: dict | None = None) -> None:
     """Join the two roads at a degree-2 node into one, unless that would duplicate a road or
     the two meet at less than ``min_angle_deg`` or ``HAIRPIN_ANGLE`` (the joined road would
-    double back: that V is :func:`remove_sharp_angles`' to resolve)."""
+    double back: that V is :func:`remove_sharp_angles`' to resolve).
+
+    A join keeps the degree of every other node (its ends trade a road for a road), so the
+    nodes of degree 2 are found once."""
     limit = math.radians(max(min_angle_deg, HAIRPIN_ANGLE))
-    for n in sorted(G.nodes):
-        if G.degree(n) != 2:
-            continue
+    for n in sorted(n for n, degree in G.degree() if degree == 2):
         a, b = sorted(G.neighbors(n))
         if a == b or G.has_edge(a, b):
             continue
@@ -674,11 +675,15 @@ def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: f
     """The whole clean-up, repeated until nothing changes. ``keep_largest=False`` keeps every
     component: the clean-up before A* reconnection, which may join them (paper §III-C).
     ``min_block_area``: open blocks smaller than this (:func:`open_tiny_blocks`), then clean
-    again."""
+    again.
+
+    Junctions close together are merged in the first round only: no pass moves or adds a
+    node, so none come close later."""
     bearings: dict = {}
-    for _ in range(10):
+    for round_ in range(10):
         before = (G.number_of_nodes(), G.number_of_edges())
-        merge_close_nodes(G, min_edge * 0.8)
+        if round_ == 0:
+            merge_close_nodes(G, min_edge * 0.8)
         contract_short_edges(G, min_edge)
         remove_sharp_angles(G, min_angle, bearings)
         prune_stubs(G, stub, margin)

@@ -76,10 +76,10 @@ def link_components(G: nx.Graph, cost: np.ndarray, res: float, radius: float) ->
     comps = components_main_first(G)
     if len(comps) <= 1:
         return []
-    main_edges = sorted(G.subgraph(comps[0]).edges)
-    lines = [shapely.LineString(G.edges[e]["coords"]) for e in main_edges]
+    main_roads = [road for road in sorted_edge_list(G) if road[0] in comps[0]]
+    lines = road_lines(main_roads)
     tree = shapely.STRtree(lines)
-    targets = rasterise_polylines([G.edges[e]["coords"] for e in main_edges], cost.shape, res)
+    targets = rasterise_polylines([data["coords"] for _, _, data in main_roads], cost.shape, res)
     links = []
     for comp in comps[1:]:
         nodes = sorted(comp)
