@@ -125,19 +125,22 @@ def _cheapest_link(p, cost, targets, res, radius, exclude=None):
         return None  # the start cell is a target: no path to trace
     xy = (cells[:, ::-1] + [j0, i0] + 0.5) * res
     xy[0] = p
-    line = shapely.LineString(xy).simplify(res * 0.75)
-    if line.length > radius * 1.5 or line.length < res:
+    line = shapely.simplify(shapely.linestrings(xy), res * 0.75)
+    length = shapely.length(line)
+    if length > radius * 1.5 or length < res:
         return None
-    return np.asarray(line.coords)
+    return shapely.get_coordinates(line)
 
 
 def _snap_end(path: np.ndarray, lines: list, tree, skip: set) -> np.ndarray | None:
     """Move the path's last point onto the nearest road not in ``skip``."""
-    end = shapely.Point(path[-1])
-    near = [k for k in tree.query(end, predicate="dwithin", distance=20.0) if k not in skip]
+    end = shapely.points(path[-1])
+    near = [k for k in tree.query(end, predicate="dwithin", distance=20.0).tolist()
+            if k not in skip]
     if not near:
         return None
-    k = min(near, key=lambda k: (lines[k].distance(end), k))
+    gaps = shapely.distance(tree.geometries.take(near), end).tolist()
+    _, k = min(zip(gaps, near, strict=True))
     hit = nearest_points(lines[k], end)[0]
     out = path.copy()
     out[-1] = (hit.x, hit.y)
