@@ -151,6 +151,73 @@ def test_a_star_links_a_dangling_end_to_the_nearest_road():
     assert math.isclose(end[1], 260.0, abs_tol=1e-6)  # ends exactly on the other road
 
 
+@pytest.mark.parametrize("levels", [None, 3, 1])
+def test_compiled_search_takes_skimages_path_even_among_equal_costs(levels):
+    """The dead-end search replicates MCP_Geometric step for step: its costs, neighbour order
+    and heap order among equal costs (few cost levels, or one, make ties everywhere)."""
+    from skimage.graph import MCP_Geometric
+
+    from roadweaver_sumo.expand.reconnect import _geometric_path
+
+    rng = np.random.default_rng(7)
+    for _ in range(300):
+        shape = tuple(rng.integers(1, 40, 2))
+        cost = rng.uniform(1.0, 5.0, shape)
+        if levels is not None:
+            cost = np.round(cost * levels / 5.0) + 1.0
+        targets = rng.random(shape) < rng.choice([0.002, 0.02, 0.2])
+        start = tuple(int(rng.integers(0, n)) for n in shape)
+        expected = np.zeros((0, 2), dtype=np.int64)
+        if targets.any():
+            mcp = MCP_Geometric(cost)
+            costs, _ = mcp.find_costs([start], np.argwhere(targets), find_all_ends=False)
+            reached = np.where(targets, costs, np.inf)
+            if np.isfinite(reached).any():
+                end = np.unravel_index(int(np.argmin(reached)), shape)
+                expected = np.array(mcp.traceback(end))
+        assert np.array_equal(_geometric_path(cost, targets, *start), expected)
+
+
+def test_compiled_gaussian_equals_scipys_bit_for_bit():
+    from scipy.ndimage import gaussian_filter
+
+    from roadweaver_sumo.tensor_field import gaussian_blur
+
+    rng = np.random.default_rng(8)
+    for shape, sigma, truncate in [((60, 45), 15.0, 3.0), ((1, 80), 2.5, 4.0), ((33, 1), 0.7, 2.0)]:
+        a = rng.normal(size=shape) * (rng.random(shape) < 0.3)
+        expected = gaussian_filter(a, sigma, mode="constant", truncate=truncate)
+        assert gaussian_blur(a, sigma, truncate).tobytes() == expected.tobytes()
+
+
+def test_compiled_samples_equal_numpys_line_by_line():
+    from roadweaver_sumo.expand.growth import tangent_samples
+    from roadweaver_sumo.raster import polyline_cells_each, sample_polyline
+
+    rng = np.random.default_rng(9)
+    lines = [np.cumsum(rng.normal(size=(int(rng.integers(1, 9)), 2))
+                       * rng.choice([0.0, 1e-10, 0.3, 30.0]), axis=0) + 500.0 for _ in range(300)]
+    for line, (i, j) in zip([ln for ln in lines if len(ln) >= 2],
+                            polyline_cells_each(lines, (200, 200), 5.0), strict=True):
+        pts = sample_polyline(line, 2.5)
+        assert np.array_equal(i, np.clip((pts[:, 1] / 5.0).astype(int), 0, 199))
+        assert np.array_equal(j, np.clip((pts[:, 0] / 5.0).astype(int), 0, 199))
+    pts, tans = tangent_samples(lines, 0.7)
+    expected = []
+    for line in lines:  # the numpy formulation, line by line
+        seg = np.diff(line, axis=0)
+        length = np.hypot(*seg.T)
+        keep = length > 1e-9
+        seg, length, starts = seg[keep], length[keep], line[:-1][keep]
+        s = np.concatenate([[0.0], np.cumsum(length)])
+        marks = np.arange(0.0, s[-1], 0.7)
+        k = np.clip(np.searchsorted(s, marks, side="right") - 1, 0, len(seg) - 1)
+        frac = (marks - s[k]) / length[k]
+        expected.append((starts[k] + frac[:, None] * seg[k], seg[k] / length[k][:, None]))
+    assert pts.tobytes() == np.vstack([p for p, _ in expected]).tobytes()
+    assert tans.tobytes() == np.vstack([t for _, t in expected]).tobytes()
+
+
 def test_junctions_placed_on_a_rectangular_field():
     """Junction placement reads a heat window clipped to the field's own rows and columns: a
     learned skeleton of a rectangular map has a field that is not square."""

@@ -674,3 +674,34 @@ def test_no_learned_map_keeps_a_block_smaller_than_a_junction(tmp_path):
                  "--style", "organic", "--out", str(out)]) == 0
     simulation = json.loads((out / "report.json").read_text())["simulation"]
     assert (simulation["collisions"], simulation["teleports_total"]) == (0, 0)
+
+
+def test_compiled_fillets_equal_the_numpy_formulation_bit_for_bit():
+    from roadweaver_sumo.expand.planar import round_corners, turn_angles
+
+    def numpy_fillets(coords, max_turn_deg, radius):  # round_corners before it was compiled
+        coords = coords[np.r_[True, np.hypot(*np.diff(coords, axis=0).T) > 1e-6]]
+        if len(coords) < 3:
+            return coords
+        turns = turn_angles(coords)
+        out = [coords[0]]
+        for k in range(1, len(coords) - 1):
+            a, b, c = coords[k - 1], coords[k], coords[k + 1]
+            turn = turns[k - 1]
+            if turn <= math.radians(max_turn_deg):
+                out.append(b)
+                continue
+            ab, bc = np.hypot(*(b - a)), np.hypot(*(c - b))
+            r = min(radius, 0.45 * ab, 0.45 * bc)
+            p0, p2 = b + (a - b) * (r / ab), b + (c - b) * (r / bc)
+            t = np.linspace(0.0, 1.0, max(3, int(math.degrees(turn) / 10) + 2))[:, None]
+            out.extend((1 - t) ** 2 * p0 + 2 * (1 - t) * t * b + t**2 * p2)
+        out.append(coords[-1])
+        return np.asarray(out)
+
+    rng = np.random.default_rng(4)
+    for _ in range(2000):
+        coords = np.cumsum(rng.normal(size=(int(rng.integers(2, 12)), 2))
+                           * rng.choice([1e-7, 1.0, 30.0]), axis=0) + 5000.0
+        assert round_corners(coords, 30.0, 20.0).tobytes() == \
+            numpy_fillets(coords, 30.0, 20.0).tobytes()
