@@ -6,7 +6,7 @@ import networkx as nx
 
 from ..forked import map_shared
 from .junctions import add_connectors, make_junctions
-from .lanes import build_road_lanes, make_roads
+from .lanes import build_road_lanes, lane_ends, make_roads
 from .model import HDMap
 from .movements import junction_plan
 from .topology import add_successor_links, repair_topology
@@ -38,12 +38,13 @@ def build_hdmap(
     for road in hd.roads.values():  # GenerateLaneBoundaries, ConstructDirectionalLanes
         trims = (hd.junctions[road.from_node].radius, hd.junctions[road.to_node].radius)
         hd.lanes.update((lane.id, lane) for lane in build_road_lanes(road, *trims))
+    ends = lane_ends(hd.lanes.values())
     nodes = list(hd.junctions)
-    plans = map_shared(lambda node: junction_plan(hd, node), nodes,
+    plans = map_shared(lambda node: junction_plan(hd, node, ends), nodes,
                        name="planning junction movements", min_items=FORK_JUNCTIONS)
     plan = [(node, *entry) for node, entries in zip(nodes, plans, strict=True)
             for entry in entries]
-    add_connectors(hd, plan)  # ConstructJunctionConnections, MergeLaneInstances
+    add_connectors(hd, plan, ends)  # ConstructJunctionConnections, MergeLaneInstances
     add_successor_links(hd)  # AddSuccessorLinks
     repair_topology(hd)  # RepairTopology
     return hd

@@ -5,9 +5,12 @@ Offsets are positive to the left of the driving direction (x east, y north, metr
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 
 from ..compiled import F8, F8_1D, F8_2D, F8_2D_ANY, compiled
+
+F8_3D = F8[:, :, ::1]
 
 MAX_MITER = 4.0  # cap on the miter stretch at sharp vertices, so offsets never spike
 BEZIER_SAMPLES = 12  # a 90° turn of 8 m radius: 2 cm from the true curve
@@ -72,16 +75,6 @@ def start_tangent(coords: np.ndarray) -> np.ndarray:
 def end_tangent(coords: np.ndarray) -> np.ndarray:
     """Unit driving direction at the last vertex."""
     return unit_tangent(coords[-1] - coords[-2])
-
-
-def start_tangent_rows(lines: list[np.ndarray]) -> np.ndarray:
-    """Unit driving directions at the first vertex of many polylines, (m, 2)."""
-    return unit_tangent(np.array([line[1] - line[0] for line in lines]))
-
-
-def end_tangent_rows(lines: list[np.ndarray]) -> np.ndarray:
-    """Unit driving directions at the last vertex of many polylines, (m, 2)."""
-    return unit_tangent(np.array([line[-1] - line[-2] for line in lines]))
 
 
 def _left(t: np.ndarray) -> np.ndarray:
@@ -178,14 +171,32 @@ def bezier_sample(ctrl: np.ndarray, n: int = BEZIER_SAMPLES):
 
     The first and last points are the first and last control points exactly (alignment 0).
     """
-    basis, d1, d2 = _bernstein(n)
-    pts = np.einsum("nk,mkd->mnd", basis, ctrl)
-    vel = np.einsum("nk,mkd->mnd", d1, ctrl)
-    acc = np.einsum("nk,mkd->mnd", d2, ctrl)
+    pts, vel, acc = _bezier_sums(*_bernstein(n), np.ascontiguousarray(ctrl, dtype=np.float64))
     speed = np.maximum(np.linalg.norm(vel, axis=2), 1e-9)
     curvature = _cross(vel, acc) / speed**3
     pts[:, 0], pts[:, -1] = ctrl[:, 0], ctrl[:, 3]
     return pts, vel / speed[..., None], curvature
+
+
+@compiled(nb.types.UniTuple(F8_3D, 3)(F8_2D, F8_2D, F8_2D, F8_3D))
+def _bezier_sums(basis, d1, d2, ctrl):
+    """Points, first and second derivatives (m, n, 2) of Beziers ``ctrl`` (m, 4, 2) from the
+    basis tables (n, 4). Compiled: the same bits as ``np.einsum("nk,mkd->mnd", table, ctrl)``
+    (a running sum from 0 over the four control points, in order), at a fraction of its time
+    on the 30,000 connectors of a 10 km map."""
+    m, n = ctrl.shape[0], basis.shape[0]
+    pts, vel, acc = np.empty((m, n, 2)), np.empty((m, n, 2)), np.empty((m, n, 2))
+    for i in range(m):
+        for j in range(n):
+            for d in range(2):
+                p = v = a = 0.0
+                for k in range(4):
+                    c = ctrl[i, k, d]
+                    p += basis[j, k] * c
+                    v += d1[j, k] * c
+                    a += d2[j, k] * c
+                pts[i, j, d], vel[i, j, d], acc[i, j, d] = p, v, a
+    return pts, vel, acc
 
 
 def bezier_sample_counts(ctrl: np.ndarray, tol: float = BEZIER_TOLERANCE,

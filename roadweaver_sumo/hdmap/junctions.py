@@ -17,12 +17,10 @@ from .geometry import (
     bezier_sample,
     bezier_sample_counts,
     boundary_offsets,
-    end_tangent_rows,
     offset_along,
-    start_tangent_rows,
     unit_tangent,
 )
-from .lanes import LANE_CONFIGS
+from .lanes import LANE_CONFIGS, LaneEnds, lane_ends
 from .model import HDMap, Junction, Lane, Road
 
 MIN_RADIUS = 2.0  # m: room for a connector even where a road just continues (degree-2 nodes)
@@ -110,9 +108,11 @@ def make_junctions(
     return junctions
 
 
-def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]]) -> list[Lane]:
+def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]],
+                   ends: LaneEnds | None = None) -> list[Lane]:
     """Create connector lanes for ``(node, incoming lane, outgoing lane, movement)`` entries,
-    all Beziers computed in one vectorised batch.
+    all Beziers computed in one vectorised batch (from ``ends``, the road lanes' ends, if
+    given).
 
     A connector runs from the incoming lane's end to the outgoing lane's start, tangent to
     both; its width blends linearly between theirs so its boundaries meet theirs too, except
@@ -125,12 +125,11 @@ def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]]) -> list[Lan
         return []
     ins = [hd.lanes[p[1]] for p in plan]
     outs = [hd.lanes[p[2]] for p in plan]
-    ctrl = bezier_controls(
-        np.array([a.centre[-1] for a in ins]),
-        end_tangent_rows([a.centre for a in ins]),
-        np.array([b.centre[0] for b in outs]),
-        start_tangent_rows([b.centre for b in outs]),
-    )
+    if ends is None:
+        ends = lane_ends({lane.id: lane for lane in ins + outs}.values())
+    i = [ends.row[p[1]] for p in plan]
+    o = [ends.row[p[2]] for p in plan]
+    ctrl = bezier_controls(ends.end[i], ends.end_tangent[i], ends.start[o], ends.start_tangent[o])
     w0 = np.array([a.end_width for a in ins])
     w1 = np.array([b.width for b in outs])
     curves, turn_speed = _connector_curves(ctrl, w0, w1)

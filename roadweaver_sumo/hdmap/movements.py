@@ -23,7 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import end_tangent, signed_angles, start_tangent
+from .geometry import signed_angles
+from .lanes import LaneEnds
 from .model import DIRECTIONS, HDMap
 
 STRAIGHT_MAX = np.radians(50.0)
@@ -47,18 +48,19 @@ class Approach:
     tangent: np.ndarray
 
 
-def approaches(hd: HDMap, node: int) -> tuple[list[Approach], list[Approach]]:
-    """Driving directions arriving at and leaving ``node``, in road and direction order."""
+def approaches(hd: HDMap, node: int, ends: LaneEnds) -> tuple[list[Approach], list[Approach]]:
+    """Driving directions arriving at and leaving ``node``, in road and direction order
+    (``ends``: the road lanes' ends)."""
     arrivals, departures = [], []
     for rid in hd.junctions[node].roads:
         road = hd.roads[rid]
         for direction in DIRECTIONS:
             lanes = road.lanes(direction)
-            centre = hd.lanes[lanes[0]].centre
+            row = ends.row[lanes[0]]
             if road.ends_at(direction) == node:
-                arrivals.append(Approach(rid, lanes, end_tangent(centre)))
+                arrivals.append(Approach(rid, lanes, ends.end_tangent[row]))
             if road.starts_at(direction) == node:
-                departures.append(Approach(rid, lanes, start_tangent(centre)))
+                departures.append(Approach(rid, lanes, ends.start_tangent[row]))
     return arrivals, departures
 
 
@@ -142,9 +144,10 @@ def _close_gaps(plan: Plan, groups: list[list[str]], side: int) -> Plan:
     return plan + added
 
 
-def junction_plan(hd: HDMap, node: int) -> Plan:
-    """The full, gap-free lane-to-lane plan of a junction, sorted for deterministic ids."""
-    arrivals, departures = approaches(hd, node)
+def junction_plan(hd: HDMap, node: int, ends: LaneEnds) -> Plan:
+    """The full, gap-free lane-to-lane plan of a junction, sorted for deterministic ids
+    (``ends``: the road lanes' ends)."""
+    arrivals, departures = approaches(hd, node, ends)
     plan: Plan = []
     for arrival in arrivals:
         plan.extend(lane_plan(arrival, classify(arrival, departures)))
