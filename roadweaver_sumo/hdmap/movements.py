@@ -20,6 +20,7 @@ Rules, right-hand traffic, lane index 0 = rightmost:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
@@ -69,9 +70,10 @@ def classify(arrival: Approach, departures: list[Approach]) -> list[tuple[Approa
     others = [d for d in departures if d.road != arrival.road]
     if not others:  # dead end: the turnaround is the only way on
         return [(d, "uturn") for d in departures]
-    turns = signed_angles(arrival.tangent, np.array([d.tangent for d in others]))
-    k = int(np.argmin(np.abs(turns)))
-    one_side = bool(np.all(turns > 0) or np.all(turns < 0))
+    angles = signed_angles(arrival.tangent, np.array([d.tangent for d in others]))
+    k = int(np.argmin(np.abs(angles)))
+    turns = angles.tolist()  # a few values: Python is quicker than numpy's calls on them
+    one_side = all(t > 0 for t in turns) or all(t < 0 for t in turns)
     has_straight = abs(turns[k]) < STRAIGHT_MAX or one_side
     labels = ["left" if t > 0 else "right" for t in turns]
     if has_straight:
@@ -84,12 +86,19 @@ def classify(arrival: Approach, departures: list[Approach]) -> list[tuple[Approa
 
 def _spread(ins: list[str], outs: list[str]) -> list[tuple[str, str]]:
     """Map lanes onto lanes in order so that every lane on both sides is used at least once."""
+    return sorted({(ins[i], outs[j]) for i, j in _spread_pairs(len(ins), len(outs))})
+
+
+@cache
+def _spread_pairs(n_in: int, n_out: int) -> tuple[tuple[int, int], ...]:
+    """The index pairs of ``_spread`` for lists of these lengths (a handful of lengths serve
+    every junction of a map)."""
     def scale(i: int, n_from: int, n_to: int) -> int:
         return int(i * (n_to - 1) / max(n_from - 1, 1) + 0.5)
 
-    pairs = {(ins[i], outs[scale(i, len(ins), len(outs))]) for i in range(len(ins))}
-    pairs |= {(ins[scale(j, len(outs), len(ins))], outs[j]) for j in range(len(outs))}
-    return sorted(pairs)
+    pairs = {(i, scale(i, n_in, n_out)) for i in range(n_in)}
+    pairs |= {(scale(j, n_out, n_in), j) for j in range(n_out)}
+    return tuple(sorted(pairs))
 
 
 def lane_plan(arrival: Approach, moves: list[tuple[Approach, str]]) -> Plan:
