@@ -52,12 +52,72 @@ def cut(coords: np.ndarray, s0: float, s1: float, gap: float = 0.5) -> np.ndarra
 
     Vertices closer than ``gap`` to a cut end are dropped: a sliver segment of a few
     centimetres next to the end would give the lanes offset from it a fold, and the lane's end
-    tangent would point backwards."""
-    s = arc_lengths(coords)
+    tangent would point backwards. Compiled (one call per road), the same bits as ``np.interp``
+    for the ends and the kept vertices in between."""
+    return _cut(np.asarray(coords, dtype=np.float64), float(s0), float(s1), float(gap))
+
+
+@compiled(F8(F8, F8_1D, F8_2D_ANY, nb.int64))
+def _interp_at(x, xp, coords, col):
+    """``np.interp(x, xp, coords[:, col])`` for one ``x`` and increasing ``xp``, the same bits:
+    numpy's branches (outside and on a vertex: that vertex's value, else the slope times the
+    step from the vertex below, from the vertex above if that is NaN)."""
+    n = len(xp)
+    if np.isnan(x):
+        return x
+    if x > xp[n - 1]:
+        return coords[n - 1, col]
+    if x < xp[0]:
+        return coords[0, col]
+    j = 0
+    while j + 1 < n and x >= xp[j + 1]:
+        j += 1
+    if j == n - 1 or xp[j] == x:
+        return coords[j, col]
+    slope = (coords[j + 1, col] - coords[j, col]) / (xp[j + 1] - xp[j])
+    out = slope * (x - xp[j]) + coords[j, col]
+    if np.isnan(out):
+        out = slope * (x - xp[j + 1]) + coords[j + 1, col]
+        if np.isnan(out) and coords[j, col] == coords[j + 1, col]:
+            out = coords[j, col]
+    return out
+
+
+@compiled(F8_2D(F8_2D_ANY, F8, F8, F8))
+def _cut(coords, s0, s1, gap):
+    s = _arc_lengths(coords)
     inner = (s > s0 + gap) & (s < s1 - gap)
-    ends = np.column_stack([np.interp([s0, s1], s, coords[:, 0]),
-                            np.interp([s0, s1], s, coords[:, 1])])
-    return np.vstack([ends[:1], coords[inner], ends[1:]])
+    out = np.empty((inner.sum() + 2, 2))
+    out[0, 0], out[0, 1] = _interp_at(s0, s, coords, 0), _interp_at(s0, s, coords, 1)
+    out[-1, 0], out[-1, 1] = _interp_at(s1, s, coords, 0), _interp_at(s1, s, coords, 1)
+    out[1:-1] = coords[inner]
+    return out
+
+
+def end_directions(lines: list[np.ndarray], probe: float) -> np.ndarray:
+    """Unit directions (2 m, 2) from each polyline's first and then its last point towards
+    the point ``probe`` metres (at most half its length) along it from that end. Compiled, for
+    every road of a map in one call; the same bits as ``np.interp`` on ``arc_lengths`` and
+    ``unit_tangent``."""
+    bounds = np.cumsum([0, *map(len, lines)])
+    return _end_directions(np.concatenate(lines).astype(np.float64), bounds, float(probe))
+
+
+@compiled(F8_2D(F8_2D, nb.int64[::1], F8))
+def _end_directions(coords, bounds, probe):
+    out = np.empty((2 * (len(bounds) - 1), 2))
+    for r in range(len(bounds) - 1):
+        line = coords[bounds[r]:bounds[r + 1]]
+        for end in range(2):
+            if end == 1:
+                line = line[::-1]
+            s = _arc_lengths(line)
+            at = min(probe, s[-1] / 2.0)
+            dx = _interp_at(at, s, line, 0) - line[0, 0]
+            dy = _interp_at(at, s, line, 1) - line[0, 1]
+            norm = np.sqrt(dx * dx + dy * dy)
+            out[2 * r + end, 0], out[2 * r + end, 1] = dx / norm, dy / norm
+    return out
 
 
 def unit_tangent(vector: np.ndarray) -> np.ndarray:
@@ -121,10 +181,22 @@ def _miter_normals(coords, min_cos):
 
 
 def offset(coords: np.ndarray, distances, miter: np.ndarray | None = None) -> np.ndarray:
-    """Parallel copies of a polyline at signed ``distances`` (left positive), shape (k, n, 2)."""
+    """Parallel copies of a polyline at signed ``distances`` (left positive), shape (k, n, 2).
+    Compiled (a call per road), the same bits as ``coords + d * miter`` broadcast in numpy."""
+    coords = np.asarray(coords, dtype=np.float64)
     miter = miter_normals(coords) if miter is None else miter
-    d = np.atleast_1d(np.asarray(distances, dtype=float))
-    return coords[None] + d[:, None, None] * miter[None]
+    d = np.atleast_1d(np.asarray(distances, dtype=np.float64))
+    return _offset(coords, np.ascontiguousarray(d), np.asarray(miter, dtype=np.float64))
+
+
+@compiled(F8_3D(F8_2D_ANY, F8_1D, F8_2D_ANY))
+def _offset(coords, distances, miter):
+    out = np.empty((len(distances), len(coords), 2))
+    for k in range(len(distances)):
+        for i in range(len(coords)):
+            for c in range(2):
+                out[k, i, c] = coords[i, c] + distances[k] * miter[i, c]
+    return out
 
 
 def signed_angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -12,13 +12,12 @@ from collections import defaultdict
 import numpy as np
 
 from .geometry import (
-    arc_lengths,
     bezier_controls,
     bezier_sample,
     bezier_sample_counts,
     boundary_offsets,
+    end_directions,
     offset_along,
-    unit_tangent,
 )
 from .lanes import LANE_CONFIGS, LaneEnds, lane_ends
 from .model import HDMap, Junction, Lane, Road
@@ -76,15 +75,6 @@ def junction_radius(directions: np.ndarray, half_widths: np.ndarray) -> float:
     return max(MIN_RADIUS, float(reach.max()) + MARGIN)
 
 
-def _leaving_direction(road: Road, node: int) -> np.ndarray:
-    """Unit direction in which ``road`` leaves ``node``, measured a few metres out."""
-    line = road.centreline if road.from_node == node else road.centreline[::-1]
-    s = arc_lengths(line)
-    probe = min(HEADING_PROBE, s[-1] / 2.0)
-    point = np.array([np.interp(probe, s, line[:, 0]), np.interp(probe, s, line[:, 1])])
-    return unit_tangent(point - line[0])
-
-
 def make_junctions(
     nodes: dict[int, tuple[float, float]], roads: dict[int, Road], traffic_lights: bool = True
 ) -> dict[int, Junction]:
@@ -93,10 +83,13 @@ def make_junctions(
     for road in roads.values():
         incident[road.from_node].append(road.id)
         incident[road.to_node].append(road.id)
+    # the unit direction in which each road leaves each of its ends, measured a few metres out
+    heads = end_directions([road.centreline for road in roads.values()], HEADING_PROBE)
+    row = {rid: 2 * k for k, rid in enumerate(roads)}
     junctions = {}
     for node in sorted(incident):
         rids = sorted(incident[node])
-        dirs = np.array([_leaving_direction(roads[r], node) for r in rids])
+        dirs = heads[[row[r] + (roads[r].from_node != node) for r in rids]]
         half = np.array([LANE_CONFIGS[roads[r].road_class].half_width for r in rids])
         junctions[node] = Junction(
             id=node,

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from functools import cache
 
 import networkx as nx
 import numpy as np
@@ -75,16 +76,24 @@ def build_road_lanes(road: Road, trim_start: float, trim_end: float) -> list[Lan
     s0 = min(trim_start, MAX_TRIM_SHARE * length)
     s1 = length - min(trim_end, MAX_TRIM_SHARE * length)
     reference = cut(road.centreline, s0, s1)
-    cfg = LANE_CONFIGS[road.road_class]
+    n = LANE_CONFIGS[road.road_class].lanes
+    both = offset(reference, _lane_offsets(road.road_class), miter_normals(reference))
+    lines = {"f": both[: 2 * n + 1], "b": both[2 * n + 1 :, ::-1]}
+    lanes = {d: _directional_lanes(road, d, lines[d][: n + 1], lines[d][n + 1 :]) for d in lines}
+    road.sections = [LaneSection(s0, s1, [x.id for x in lanes["f"]], [x.id for x in lanes["b"]])]
+    return lanes["f"] + lanes["b"]
+
+
+@cache
+def _lane_offsets(road_class: str) -> np.ndarray:
+    """Left offsets of a road's lines from its reference line: first those of its ``f`` lanes,
+    then the same to the left for its ``b`` lanes (one array for one offsetting call)."""
+    cfg = LANE_CONFIGS[road_class]
     n, w = cfg.lanes, cfg.width
     # distances right of the driving direction: boundary j at (n - j) lane widths (j = 0 the
     # outermost, j = n the reference line itself), then lane k's centre at (n - k - 0.5) widths
     right = w * np.concatenate([np.arange(n, -1, -1), np.arange(n, 0, -1) - 0.5])
-    miter = miter_normals(reference)
-    lines = {"f": offset(reference, -right, miter), "b": offset(reference, right, miter)[:, ::-1]}
-    lanes = {d: _directional_lanes(road, d, lines[d][: n + 1], lines[d][n + 1 :]) for d in lines}
-    road.sections = [LaneSection(s0, s1, [x.id for x in lanes["f"]], [x.id for x in lanes["b"]])]
-    return lanes["f"] + lanes["b"]
+    return np.concatenate([-right, right])
 
 
 def _directional_lanes(road: Road, direction: str, bounds: np.ndarray, centres: np.ndarray):
