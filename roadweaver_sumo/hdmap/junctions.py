@@ -127,7 +127,8 @@ def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]],
     w1 = np.array([b.width for b in outs])
     curves, turn_speed = _connector_curves(ctrl, w0, w1)
     lanes = []
-    for i, ((node, in_id, out_id, movement), a, b) in enumerate(zip(plan, ins, outs, strict=True)):
+    for (node, in_id, out_id, movement), a, b, (centre, left, right), bezier, turn in zip(
+            plan, ins, outs, curves, ctrl, turn_speed.tolist(), strict=True):
         junction = hd.junctions[node]
         lane = Lane(
             id=f"j{node}_{len(junction.connectors)}",
@@ -135,13 +136,13 @@ def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]],
             road_class=a.road_class,
             width=a.end_width,
             end_width=b.width,
-            speed=round(min(a.speed, b.speed, float(turn_speed[i])), 2),
-            centre=curves[i][0],
-            left=curves[i][1],
-            right=curves[i][2],
+            speed=round(min(a.speed, b.speed, turn), 2),
+            centre=centre,
+            left=left,
+            right=right,
             junction=node,
             movement=movement,
-            bezier=ctrl[i],
+            bezier=bezier,
             predecessors=[in_id],
             successors=[out_id],
         )
@@ -160,19 +161,23 @@ def _connector_curves(ctrl: np.ndarray, w0: np.ndarray, w1: np.ndarray):
     offsets are then resampled with just enough points for their curve
     (``bezier_sample_counts``): a straight one needs two."""
     pts, tangents, curvature = bezier_sample(ctrl)
-    half = (w0[:, None] + (w1 - w0)[:, None] * np.linspace(0.0, 1.0, pts.shape[1])) / 2.0
+    n = pts.shape[1]
+    half = (w0[:, None] + (w1 - w0)[:, None] * np.linspace(0.0, 1.0, n)) / 2.0
     left_d, right_d = boundary_offsets(curvature, half)
-    left, right = offset_along(pts, tangents, left_d), offset_along(pts, tangents, right_d)
     turn_speed = np.sqrt(LATERAL_ACCEL / np.maximum(np.abs(curvature).max(axis=1), 1e-9))
     counts = bezier_sample_counts(ctrl)
     pulled = ~((left_d == half).all(axis=1) & (right_d == -half).all(axis=1))
-    counts[pulled] = pts.shape[1]
-    curves = list(zip(pts, left, right, strict=True))
-    for n in np.unique(counts[counts < pts.shape[1]]).tolist():
-        rows = np.flatnonzero(counts == n)
-        p, t, _ = bezier_sample(ctrl[rows], n)
-        h = (w0[rows, None] + (w1 - w0)[rows, None] * np.linspace(0.0, 1.0, n)) / 2.0
-        group = zip(p, offset_along(p, t, h), offset_along(p, t, -h), strict=True)
+    counts[pulled] = n
+    curves = [None] * len(ctrl)
+    for m in np.unique(counts).tolist():
+        rows = np.flatnonzero(counts == m)
+        if m == n:  # the dense samples stand
+            p, t, left, right = pts[rows], tangents[rows], left_d[rows], right_d[rows]
+        else:
+            p, t, _ = bezier_sample(ctrl[rows], m)
+            left = (w0[rows, None] + (w1 - w0)[rows, None] * np.linspace(0.0, 1.0, m)) / 2.0
+            right = -left
+        group = zip(p, offset_along(p, t, left), offset_along(p, t, right), strict=True)
         for row, curve in zip(rows.tolist(), group, strict=True):
             curves[row] = curve
     return curves, turn_speed
