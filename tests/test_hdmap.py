@@ -414,3 +414,63 @@ def test_no_left_turn_sharper_than_135_degrees_where_there_is_another_way():
                   if hd.lanes[c].successors[0].startswith(f"r{roads[(0, 3)]}_f")}
     assert into_acute == {f"r{roads[(0, 2)]}_b_right"}
     assert lane_reachability(hd) == 1.0
+
+
+def _same_bits(a, b) -> bool:
+    a, b = np.ascontiguousarray(a, dtype=float), np.ascontiguousarray(b, dtype=float)
+    return a.shape == b.shape and np.array_equal(a.view(np.int64), b.view(np.int64))
+
+
+def test_compiled_and_batched_hdmap_steps_match_numpy_bit_for_bit():
+    """Cuts, offsets, road end directions, Bezier samples and junction radii are compiled or
+    computed for a whole map at once; each must give the bits of its numpy formulation, or
+    the written maps would change."""
+    from roadweaver_sumo.hdmap.geometry import (
+        _bernstein,
+        _cross,
+        bezier_sample,
+        cut,
+        end_directions,
+        offset,
+    )
+    from roadweaver_sumo.hdmap.junctions import junction_radii, junction_radius
+
+    rng = np.random.default_rng(1)
+    lines = [np.cumsum(rng.normal(0, rng.choice([0.1, 5.0, 50.0]), (int(rng.integers(2, 30)), 2)),
+                       axis=0) + rng.uniform(0, 1e4, 2) for _ in range(500)]
+    for coords in lines:
+        s = arc_lengths(coords)
+        s0, s1 = sorted(rng.uniform(-1.0, s[-1] + 1.0, 2))
+        ends = np.column_stack([np.interp([s0, s1], s, coords[:, 0]),
+                                np.interp([s0, s1], s, coords[:, 1])])
+        inner = (s > s0 + 0.5) & (s < s1 - 0.5)
+        assert _same_bits(cut(coords, s0, s1), np.vstack([ends[:1], coords[inner], ends[1:]]))
+        d = rng.normal(0, 5, 5)
+        miter = miter_normals(coords)
+        assert _same_bits(offset(coords, d, miter), coords[None] + d[:, None, None] * miter[None])
+    heads = end_directions(lines, 5.0)
+    for k, coords in enumerate(lines):
+        for end, line in enumerate((coords, coords[::-1])):
+            s = arc_lengths(line)
+            probe = min(5.0, s[-1] / 2.0)
+            point = np.array([np.interp(probe, s, line[:, 0]), np.interp(probe, s, line[:, 1])])
+            assert _same_bits(heads[2 * k + end], unit_tangent(point - line[0]))
+
+    ctrl = rng.normal(0, 20, (300, 4, 2))
+    ctrl[0, 1:] = ctrl[0, 0]  # a connector of no length
+    for n in (2, 5, 12):
+        basis, d1, d2 = _bernstein(n)
+        pts, vel, acc = (np.einsum("nk,mkd->mnd", table, ctrl) for table in (basis, d1, d2))
+        speed = np.maximum(np.linalg.norm(vel, axis=2), 1e-9)
+        pts[:, 0], pts[:, -1] = ctrl[:, 0], ctrl[:, 3]
+        numpy_way = (pts, vel / speed[..., None], _cross(vel, acc) / speed**3)
+        assert all(map(_same_bits, bezier_sample(ctrl, n), numpy_way))
+
+    sizes = rng.integers(1, 7, 3000).tolist()
+    bearing = rng.uniform(-np.pi, np.pi, sum(sizes))
+    bearing[rng.random(len(bearing)) < 0.05] = 0.5  # ties: measured alone
+    directions = np.column_stack([np.cos(bearing), np.sin(bearing)])
+    half = rng.choice([3.0, 3.25, 7.0], len(bearing))
+    first = np.cumsum(sizes) - sizes
+    alone = [junction_radius(directions[f : f + n], half[f : f + n]) for f, n in zip(first, sizes)]
+    assert junction_radii(directions, half, sizes) == alone

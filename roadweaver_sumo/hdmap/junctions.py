@@ -75,6 +75,41 @@ def junction_radius(directions: np.ndarray, half_widths: np.ndarray) -> float:
     return max(MIN_RADIUS, float(reach.max()) + MARGIN)
 
 
+def junction_radii(directions: np.ndarray, half_widths: np.ndarray,
+                   sizes: list[int]) -> list[float]:
+    """``junction_radius`` of many junctions at once, the same bits: junction k's roads are
+    the next ``sizes[k]`` rows. Each junction's roads are sorted by bearing in one stable
+    sort; a junction with two equal bearings (or a NaN) is measured alone, since there
+    ``np.argsort``'s order of the ties decides."""
+    if not sizes:
+        return []
+    sizes = np.asarray(sizes)
+    first = np.cumsum(sizes) - sizes
+    group = np.repeat(np.arange(len(sizes)), sizes)
+    bearing = np.arctan2(directions[:, 1], directions[:, 0])
+    order = np.lexsort((bearing, group))
+    b, w = bearing[order], half_widths[order]
+    after = np.arange(1, len(b) + 1)  # each road's next one round its junction
+    after[first + sizes - 1] = first
+    gap = np.mod(b[after] - b, 2 * np.pi)
+    wi, wj = w, w[after]
+    near = gap < NEAR_STRAIGHT
+    a = np.maximum(gap[near], MIN_ANGLE)
+    reach = np.full(len(b), -np.inf)
+    reach[near] = np.maximum(wj[near] + wi[near] * np.cos(a),
+                             wi[near] + wj[near] * np.cos(a)) / np.sin(a)
+    most = np.maximum.reduceat(reach, first) + MARGIN  # -inf where no neighbours are near
+    radius = np.where(most > MIN_RADIUS, most, MIN_RADIUS)  # as max(): a NaN gives MIN_RADIUS
+    end = half_widths[first]
+    radius[sizes == 1] = np.where(end > MIN_RADIUS, end, MIN_RADIUS)[sizes == 1]
+    radii = radius.tolist()
+    alone = (b[after] == b) | np.isnan(b)
+    for k in np.unique(group[alone & (sizes[group] > 1)]).tolist():
+        rows = slice(first[k], first[k] + sizes[k])
+        radii[k] = junction_radius(directions[rows], half_widths[rows])
+    return radii
+
+
 def make_junctions(
     nodes: dict[int, tuple[float, float]], roads: dict[int, Road], traffic_lights: bool = True
 ) -> dict[int, Junction]:
@@ -86,19 +121,23 @@ def make_junctions(
     # the unit direction in which each road leaves each of its ends, measured a few metres out
     heads = end_directions([road.centreline for road in roads.values()], HEADING_PROBE)
     row = {rid: 2 * k for k, rid in enumerate(roads)}
-    junctions = {}
-    for node in sorted(incident):
-        rids = sorted(incident[node])
-        dirs = heads[[row[r] + (roads[r].from_node != node) for r in rids]]
-        half = np.array([LANE_CONFIGS[roads[r].road_class].half_width for r in rids])
-        junctions[node] = Junction(
+    nodes_in_order = sorted(incident)
+    incidents = [sorted(incident[node]) for node in nodes_in_order]
+    dirs = heads[[row[r] + (roads[r].from_node != node)
+                  for node, rids in zip(nodes_in_order, incidents, strict=True) for r in rids]]
+    half = np.array([LANE_CONFIGS[roads[r].road_class].half_width
+                     for rids in incidents for r in rids])
+    radii = junction_radii(dirs, half, [len(rids) for rids in incidents])
+    return {
+        node: Junction(
             id=node,
             xy=(float(nodes[node][0]), float(nodes[node][1])),
             type=junction_type([roads[r].road_class for r in rids], traffic_lights),
-            radius=junction_radius(dirs, half),
+            radius=radius,
             roads=rids,
         )
-    return junctions
+        for node, rids, radius in zip(nodes_in_order, incidents, radii, strict=True)
+    }
 
 
 def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]],

@@ -43,12 +43,10 @@ def lane_graph(hd: HDMap) -> tuple[list[str], csr_matrix]:
     """Lane ids (sorted) and the adjacency matrix of successor and lane-change links."""
     ids = sorted(hd.lanes)
     index = {lane_id: i for i, lane_id in enumerate(ids)}
-    src, dst = [], []
-    for lane_id in ids:
-        lane = hd.lanes[lane_id]
-        targets = lane.successors + [n for n in (lane.left_neighbour, lane.right_neighbour) if n]
-        src.extend([index[lane_id]] * len(targets))
-        dst.extend(index[t] for t in targets)
+    targets = [[*lane.successors, *filter(None, (lane.left_neighbour, lane.right_neighbour))]
+               for lane in map(hd.lanes.__getitem__, ids)]
+    src = np.repeat(np.arange(len(ids)), list(map(len, targets)))
+    dst = [index[t] for lane_targets in targets for t in lane_targets]
     data = np.ones(len(src), dtype=np.int8)
     return ids, csr_matrix((data, (src, dst)), shape=(len(ids), len(ids)))
 
@@ -65,9 +63,12 @@ def _components(hd: HDMap) -> tuple[list[str], int, np.ndarray, np.ndarray]:
 
 
 def _add_uturn(hd: HDMap, node: int, in_id: str, out_id: str) -> None:
-    """Add and link one U-turn connector at ``node``."""
+    """Add and link one U-turn connector at ``node``, keeping the link lists it joins sorted
+    (as ``add_successor_links`` left them all)."""
     for connector in add_connectors(hd, [(node, in_id, out_id, "uturn")]):
         link_connector(hd, connector)
+        hd.lanes[in_id].successors.sort()
+        hd.lanes[out_id].predecessors.sort()
 
 
 def _uturns_for_closed_components(hd: HDMap) -> int:
@@ -114,7 +115,6 @@ def repair_topology(hd: HDMap) -> int:
         if not added:
             break
         total += added
-    _sort_links(hd)
     return total
 
 
