@@ -22,12 +22,23 @@ INNER_RAMP = 3  # samples over which a narrowed inner boundary returns to the la
 def dedupe(coords: np.ndarray, tol: float = 1e-6) -> np.ndarray:
     """Drop consecutive points closer than ``tol`` (zero-length segments have no direction),
     keeping both ends exactly (part of paper Algorithm 1, RefineRoadGraph)."""
-    coords = np.asarray(coords, dtype=float)
-    keep = np.ones(len(coords), dtype=bool)
-    keep[1:] = np.hypot(*np.diff(coords, axis=0).T) > tol
+    return _dedupe(np.asarray(coords, dtype=np.float64), float(tol))
+
+
+@compiled(F8_2D(F8_2D_ANY, F8))
+def _dedupe(coords, tol):
+    """Compiled (a call per road), the same bits as numpy's ``hypot`` of ``diff``."""
+    keep = np.ones(len(coords), dtype=np.bool_)
+    for k in range(len(coords) - 1):
+        keep[k + 1] = np.hypot(coords[k + 1, 0] - coords[k, 0],
+                               coords[k + 1, 1] - coords[k, 1]) > tol
     out = coords[keep]
     out[-1] = coords[-1]  # a dropped last point moves its kept neighbour onto it
-    return out if len(out) >= 2 else coords[[0, -1]]
+    if len(out) >= 2:
+        return out
+    ends = np.empty((2, 2))
+    ends[0], ends[1] = coords[0], coords[-1]
+    return ends
 
 
 def arc_lengths(coords: np.ndarray) -> np.ndarray:
