@@ -474,3 +474,11 @@ def test_compiled_and_batched_hdmap_steps_match_numpy_bit_for_bit():
     first = np.cumsum(sizes) - sizes
     alone = [junction_radius(directions[f : f + n], half[f : f + n]) for f, n in zip(first, sizes)]
     assert junction_radii(directions, half, sizes) == alone
+
+
+def test_a_graph_without_roads_gives_an_empty_map():
+    """Batched steps (road end directions, junction radii) take an empty batch."""
+    G = new_road_graph(100.0, 100.0)
+    G.add_node(0, xy=(1.0, 2.0))
+    hd = build_hdmap(G)
+    assert not hd.roads and not hd.junctions and not hd.lanes

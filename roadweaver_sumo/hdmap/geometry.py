@@ -110,6 +110,8 @@ def end_directions(lines: list[np.ndarray], probe: float) -> np.ndarray:
     the point ``probe`` metres (at most half its length) along it from that end. Compiled, for
     every road of a map in one call; the same bits as ``np.interp`` on ``arc_lengths`` and
     ``unit_tangent``."""
+    if not lines:
+        return np.empty((0, 2))
     bounds = np.cumsum([0, *map(len, lines)])
     return _end_directions(np.concatenate(lines).astype(np.float64), bounds, float(probe))
 
