@@ -1,7 +1,7 @@
 """Our three map formats, written side by side.
 
 SUMO plain XML, OpenDRIVE and lanelet2 all read the same finished HD map and write different
-files; at 10 km lanelet2 takes about 1.8 s, OpenDRIVE 1.4 s and the plain files 0.4 s. Where the
+files; at 10 km lanelet2 takes about 1.5 s, OpenDRIVE 1.3 s and the plain files 0.3 s. Where the
 platform can fork, one forked child writes the plain files and then OpenDRIVE (the map is shared
 copy-on-write, nothing is pickled) while this process writes lanelet2, the longest: two
 processes for two cores, and the longest writer runs where the map is already in its own
