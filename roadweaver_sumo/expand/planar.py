@@ -105,20 +105,88 @@ def road_lines(roads: list) -> list:
 
 def _piece_classes(pieces: np.ndarray, kept: list) -> list[str]:
     """The road class of every piece: the best class of the polylines passing within 5 cm of
-    its middle, from one bulk query against their segments (a tree of whole polylines would
-    measure every piece against each map-long arterial, vertex by vertex)."""
-    mids = shapely.line_interpolate_point(pieces, 0.5, normalized=True)
+    its middle, from one compiled pass over their segments (a tree of whole polylines would
+    measure every piece against each map-long arterial, vertex by vertex, and a tree of the
+    segments costs more to build than to query)."""
+    mids = shapely.get_coordinates(shapely.line_interpolate_point(pieces, 0.5, normalized=True))
     points = np.concatenate([c for c, _ in kept])
     point_owner = np.repeat(np.arange(len(kept)), [len(c) for c, _ in kept])
     inside = point_owner[1:] == point_owner[:-1]  # steps between two polylines are not segments
-    segments = shapely.linestrings(np.stack([points[:-1], points[1:]], axis=1)[inside])
-    owner = point_owner[1:][inside]
-    which, near = shapely.STRtree(segments).query(mids, predicate="dwithin", distance=0.05)
     rank = np.array([CLASS_RANK[cls] for _, cls in kept])
-    best = np.zeros(len(pieces), dtype=int)  # local, where no polyline passes
-    np.maximum.at(best, which, rank[owner[near]])
+    best = _best_rank_near(mids, np.ascontiguousarray(points[:-1][inside]),
+                           np.ascontiguousarray(points[1:][inside]),
+                           rank[point_owner[1:][inside]], 0.05)
     names = sorted(CLASS_RANK, key=CLASS_RANK.__getitem__)
     return [names[r] for r in best.tolist()]
+
+
+@compiled(F8(F8, F8, F8, F8, F8, F8))
+def _point_to_segment(px, py, ax, ay, bx, by):
+    """GEOS's ``Distance::pointToSegment``, operation for operation."""
+    if ax == bx and ay == by:
+        return np.sqrt((px - ax) * (px - ax) + (py - ay) * (py - ay))
+    len2 = (bx - ax) * (bx - ax) + (by - ay) * (by - ay)
+    r = ((px - ax) * (bx - ax) + (py - ay) * (by - ay)) / len2
+    if r <= 0.0:
+        return np.sqrt((px - ax) * (px - ax) + (py - ay) * (py - ay))
+    if r >= 1.0:
+        return np.sqrt((px - bx) * (px - bx) + (py - by) * (py - by))
+    s = ((ay - py) * (bx - ax) - (ax - px) * (by - ay)) / len2
+    return abs(s) * np.sqrt(len2)
+
+
+@compiled(I8_1D(F8_2D, F8_2D, F8_2D, I8_1D, F8))
+def _best_rank_near(points, starts, ends, rank, reach):
+    """For every point, the highest rank of the segments within ``reach`` of it (0 where none
+    is), each segment tested against the points in the grid cells its box covers. A point and a
+    segment are within reach exactly when GEOS's ``dwithin`` says so: the same envelope
+    distance, then the same point-to-segment distance (``Distance::pointToSegment``)."""
+    n = len(points)
+    best = np.zeros(n, dtype=np.int64)
+    if n == 0:
+        return best
+    x0, y0 = points[:, 0].min(), points[:, 1].min()
+    extent = max(points[:, 0].max() - x0, points[:, 1].max() - y0)
+    cell = max(25.0, extent / 1000.0)
+    nx = int((points[:, 0].max() - x0) / cell) + 1
+    ny = int((points[:, 1].max() - y0) / cell) + 1
+    cell_of = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        cell_of[i] = int((points[i, 1] - y0) / cell) * nx + int((points[i, 0] - x0) / cell)
+    order = np.argsort(cell_of, kind="mergesort")
+    first = np.zeros(nx * ny + 1, dtype=np.int64)
+    for i in range(n):
+        first[cell_of[i] + 1] += 1
+    for c in range(nx * ny):
+        first[c + 1] += first[c]
+    for s in range(len(starts)):
+        ax, ay, bx, by = starts[s, 0], starts[s, 1], ends[s, 0], ends[s, 1]
+        lox, hix, loy, hiy = min(ax, bx), max(ax, bx), min(ay, by), max(ay, by)
+        cx0 = max(int(np.floor((lox - reach - x0) / cell)), 0)
+        cx1 = min(int(np.floor((hix + reach - x0) / cell)), nx - 1)
+        cy0 = max(int(np.floor((loy - reach - y0) / cell)), 0)
+        cy1 = min(int(np.floor((hiy + reach - y0) / cell)), ny - 1)
+        r = rank[s]
+        for cy in range(cy0, cy1 + 1):
+            for c in range(cy * nx + cx0, cy * nx + cx1 + 1):
+                for j in range(first[c], first[c + 1]):
+                    i = order[j]
+                    if best[i] >= r:
+                        continue
+                    px, py = points[i, 0], points[i, 1]
+                    dx = lox - px if px < lox else (px - hix if px > hix else 0.0)
+                    dy = loy - py if py < loy else (py - hiy if py > hiy else 0.0)
+                    if dx == 0.0:
+                        envelope = dy
+                    elif dy == 0.0:
+                        envelope = dx
+                    else:
+                        envelope = np.sqrt(dx * dx + dy * dy)
+                    if envelope > reach:
+                        continue
+                    if _point_to_segment(px, py, ax, ay, bx, by) <= reach:
+                        best[i] = r
+    return best
 
 
 def _rounded(points: np.ndarray) -> np.ndarray:
