@@ -29,7 +29,6 @@ class TensorField:
     c2: np.ndarray  # a cos 2θ, shape (ny, nx)
     s2: np.ndarray  # a sin 2θ
     res: float
-    _unit: tuple | None = field(default=None, repr=False, compare=False)
     _unit_arrays: tuple | None = field(default=None, repr=False, compare=False)
 
     def _cell(self, x, y):
@@ -54,15 +53,15 @@ class TensorField:
         return self._unit_arrays
 
     def major_at(self, x: float, y: float) -> tuple[float, float]:
-        """Fast scalar version of :meth:`major` for a Python loop (plain floats: numpy
-        call overhead would dominate a single lookup)."""
-        if self._unit is None:
-            self._unit = tuple(axis.tolist() for axis in self.unit_vectors())
+        """Scalar version of :meth:`major` for a Python loop: one cell of
+        :meth:`unit_vectors`, as plain floats (a few hundred lookups per map do not pay for
+        converting the whole field to lists)."""
+        ux, uy = self.unit_vectors()
         ny, nx = self.c2.shape
         i = min(max(int(y / self.res), 0), ny - 1)
         j = min(max(int(x / self.res), 0), nx - 1)
         k = i * nx + j
-        return self._unit[0][k], self._unit[1][k]
+        return float(ux[k]), float(uy[k])
 
     def anisotropy(self, x, y):
         i, j = self._cell(x, y)
