@@ -184,10 +184,12 @@ def test_compiled_gaussian_equals_scipys_bit_for_bit():
     from roadweaver_sumo.tensor_field import gaussian_blur
 
     rng = np.random.default_rng(8)
-    for shape, sigma, truncate in [((60, 45), 15.0, 3.0), ((1, 80), 2.5, 4.0), ((33, 1), 0.7, 2.0)]:
-        a = rng.normal(size=shape) * (rng.random(shape) < 0.3)
-        expected = gaussian_filter(a, sigma, mode="constant", truncate=truncate)
-        assert gaussian_blur(a, sigma, truncate).tobytes() == expected.tobytes()
+    cases = [((60, 45), 15.0, 3.0), ((1, 80), 2.5, 4.0), ((33, 1), 0.7, 2.0), ((20, 30), 25.0, 4.0)]
+    for mode in ("constant", "wrap"):  # wrap also where the kernel is longer than the raster
+        for shape, sigma, truncate in cases:
+            a = rng.normal(size=shape) * (rng.random(shape) < 0.3)
+            expected = gaussian_filter(a, sigma, mode=mode, truncate=truncate)
+            assert gaussian_blur(a, sigma, truncate, mode).tobytes() == expected.tobytes()
 
 
 def test_compiled_samples_equal_numpys_line_by_line():
