@@ -245,6 +245,29 @@ def test_text_tree_writes_what_lxml_pretty_print_writes(tmp_path):
         assert tree.find("road/lanes/lane/link/successor").get("id") == "2"
 
 
+def test_text_tree_is_written_as_its_text_in_batches(tmp_path):
+    """Thousands of pieces (written in joined batches) and a placed block too large to be
+    joined (written as it is) give the tree's text, in order."""
+    from roadweaver_sumo.export.xmltext import (
+        DECLARATION,
+        Element,
+        PlacedBlock,
+        leaf,
+        sub,
+        to_text,
+        write,
+    )
+
+    root = Element("root")
+    for k in range(3000):
+        sub(root, "road", f' id="{k}"').children.append(leaf("lane", f' id="{k}"'))
+    root.append(PlacedBlock("\n  ".join(f'<node id="{k}"/>' for k in range(20000))))
+    for k in range(500):
+        root.children.append(leaf("way", f' id="{k}"'))
+    written = write(root, tmp_path / "big.xml").read_text(encoding="utf-8")
+    assert written == DECLARATION + to_text(root, "  ") + "\n"
+
+
 @pytest.mark.parametrize("decimals", [9, 15])
 def test_compiled_number_rows_are_what_python_formats(decimals):
     """Every value as :func:`_num` writes it (correct rounding of the exact binary value, ties
