@@ -28,7 +28,7 @@ from ..compiled import B1_2D, I8, I8_2D, U1_1D, compiled
 from ..hdmap.geometry import cut
 from ..hdmap.model import DIRECTIONS, HDMap, Lane, Road
 from .opendrive_geometry import DECIMALS, Piece, bezier_pieces, fillet_plans
-from .xmltext import Block, Element, cdata, escape, leaf, sub, write
+from .xmltext import Block, Element, PlacedBlock, cdata, escape, leaf, sub, write
 
 CURVATURE_DECIMALS = 15  # an arc's end moves by length^2 / 2 times the curvature's rounding
 DATE = "2025-01-01T00:00:00"  # fixed, so that two runs write the same bytes
@@ -62,8 +62,11 @@ def opendrive_tree(hd: HDMap) -> Element:
     geometries = _rows(_GEOMETRY, [p[1:6] for p in pieces])
     curves = _rows(_PARAM_POLY3, [(*p.u, *p.v) for p in pieces])
     numbers = _connector_numbers(connectors, pieces)
-    for lane, geometry, curve, texts in zip(connectors, geometries, curves, numbers, strict=True):
-        root.append(_connecting_road(hd, lane, connecting[lane.id], geometry, curve, texts))
+    roads = [_connecting_road(hd, lane, connecting[lane.id], geometry, curve, texts)
+             for lane, geometry, curve, texts in zip(connectors, geometries, curves, numbers,
+                                                     strict=True)]
+    if roads:  # the root's children: lines one indent deep
+        root.append(PlacedBlock("\n  ".join(roads)))
     root.extend(controllers)
     for jid in sorted(hd.junctions):
         if hd.junctions[jid].connectors:
@@ -316,54 +319,55 @@ def _connector_numbers(connectors: list[Lane], pieces: list[Piece]) -> list[list
 
 
 def _connecting_road(hd: HDMap, lane: Lane, rid: int, geometry: str, curve: str,
-                     numbers: list[str]) -> Block:
+                     numbers: list[str]) -> str:
     """A connector as a one-lane connecting road inside its junction (chapter "Junctions":
     connecting roads), its ``<geometry>`` and ``<paramPoly3>`` lines ``geometry`` and
     ``curve`` and its other ``numbers`` (:func:`_connector_numbers`), linked to its incoming
     and outgoing road and lanes.
 
-    Written as one finished block of text (the most numerous road of a map: building it
-    element by element cost a third of the file's time), in the file's two-space indent."""
+    Written as finished text (the most numerous road of a map: building it element by
+    element cost a third of the file's time), its lines after the first placed one two-space
+    indent deep, as the root's children are: no re-indenting of 30k roads when written."""
     incoming, outgoing = hd.lanes[lane.predecessors[0]], hd.lanes[lane.successors[0]]
     road_type = ROAD_TYPES.get(lane.road_class, "town")
     length, speed, offset_a, offset_b, width, slope = numbers
-    return Block(
+    return (
         f'<road id="{rid}" name="{escape(lane.id)}" junction="{lane.junction}"'
         f' length="{length}" rule="RHT">\n'
-        f'  <link>\n'
-        f'    <predecessor elementType="road" elementId="{incoming.road}"'
+        f'    <link>\n'
+        f'      <predecessor elementType="road" elementId="{incoming.road}"'
         f' contactPoint="{_contact(incoming, arriving=True)}"/>\n'
-        f'    <successor elementType="road" elementId="{outgoing.road}"'
+        f'      <successor elementType="road" elementId="{outgoing.road}"'
         f' contactPoint="{_contact(outgoing, arriving=False)}"/>\n'
-        f'  </link>\n'
-        f'  <type s="{_ZERO}" type="{road_type}">\n'
-        f'    <speed max="{speed}" unit="m/s"/>\n'
-        f'  </type>\n'
-        f'  <planView>\n'
-        f'    {geometry}\n'
-        f'      {curve}\n'
-        f'    </geometry>\n'
-        f'  </planView>\n'
-        f'  <lanes>\n'
-        f'    <laneOffset s="{_ZERO}" a="{offset_a}" b="{offset_b}"'
+        f'    </link>\n'
+        f'    <type s="{_ZERO}" type="{road_type}">\n'
+        f'      <speed max="{speed}" unit="m/s"/>\n'
+        f'    </type>\n'
+        f'    <planView>\n'
+        f'      {geometry}\n'
+        f'        {curve}\n'
+        f'      </geometry>\n'
+        f'    </planView>\n'
+        f'    <lanes>\n'
+        f'      <laneOffset s="{_ZERO}" a="{offset_a}" b="{offset_b}"'
         f' c="{_ZERO}" d="{_ZERO}"/>\n'
-        f'    <laneSection s="{_ZERO}">\n'
-        f'      <center>\n'
-        f'        <lane id="0" type="none"/>\n'
-        f'      </center>\n'
-        f'      <right>\n'
-        f'        <lane id="-1" type="driving">\n'
-        f'          <link>\n'
-        f'            <predecessor id="{xodr_lane_id(hd, incoming)}"/>\n'
-        f'            <successor id="{xodr_lane_id(hd, outgoing)}"/>\n'
-        f'          </link>\n'
-        f'          {_width(width, slope)}\n'
-        f'          {_speed(speed)}\n'
-        f'        </lane>\n'
-        f'      </right>\n'
-        f'    </laneSection>\n'
-        f'  </lanes>\n'
-        f'</road>')
+        f'      <laneSection s="{_ZERO}">\n'
+        f'        <center>\n'
+        f'          <lane id="0" type="none"/>\n'
+        f'        </center>\n'
+        f'        <right>\n'
+        f'          <lane id="-1" type="driving">\n'
+        f'            <link>\n'
+        f'              <predecessor id="{xodr_lane_id(hd, incoming)}"/>\n'
+        f'              <successor id="{xodr_lane_id(hd, outgoing)}"/>\n'
+        f'            </link>\n'
+        f'            {_width(width, slope)}\n'
+        f'            {_speed(speed)}\n'
+        f'          </lane>\n'
+        f'        </right>\n'
+        f'      </laneSection>\n'
+        f'    </lanes>\n'
+        f'  </road>')
 
 
 def _junction(hd: HDMap, jid: int, connecting: dict[str, int]) -> Element:
