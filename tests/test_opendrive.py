@@ -246,8 +246,8 @@ def test_text_tree_writes_what_lxml_pretty_print_writes(tmp_path):
 
 
 def test_text_tree_is_written_as_its_text_in_batches(tmp_path):
-    """Thousands of pieces (written in joined batches) and a placed block too large to be
-    joined (written as it is) give the tree's text, in order."""
+    """Thousands of pieces (written in joined batches), a placed block too large to be joined
+    and placed blocks of bytes (written as they are) give the tree's text, in order."""
     from roadweaver_sumo.export.xmltext import (
         DECLARATION,
         Element,
@@ -264,6 +264,9 @@ def test_text_tree_is_written_as_its_text_in_batches(tmp_path):
     root.append(PlacedBlock("\n  ".join(f'<node id="{k}"/>' for k in range(20000))))
     for k in range(500):
         root.children.append(leaf("way", f' id="{k}"'))
+    root.append(PlacedBlock(memoryview(b'<relation id="1"/>\n  <relation id="2"/>')))
+    root.append(PlacedBlock(b"\n  ".join(b'<tag k="%d"/>' % k for k in range(20000))))
+    sub(root, "end")
     written = write(root, tmp_path / "big.xml").read_text(encoding="utf-8")
     assert written == DECLARATION + to_text(root, "  ") + "\n"
 

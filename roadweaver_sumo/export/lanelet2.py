@@ -428,7 +428,7 @@ def _add_nodes(root, hd: HDMap, ids: _Ids) -> None:
     # The nodes are the root's children: their lines go one indent deep.
     text = _node_lines(node_ids, *_fixed_point(lat), *_fixed_point(lon),
                        np.frombuffer(("\n" + INDENT).encode(), np.uint8).copy())
-    root.append(PlacedBlock(str(text.data, "ascii")))
+    root.append(PlacedBlock(text.data))  # 50 MB of bytes: written as they are, not decoded
 
 
 _NODE_LINE = (f'<node id="%d" visible="true" version="1" lat="%.{DEGREE_DECIMALS}f"'

@@ -45,11 +45,13 @@ class PlacedBlock:
     """A :class:`Block` whose lines after the first already carry the indent of the place it
     is written to: written as it is, where a Block of a million lines would be re-indented
     line by line. It holds its text rather than being a str: a str subclass copies the text
-    it is made from, 50 MB for the nodes of a 10 km lanelet2 map."""
+    it is made from, 50 MB for the nodes of a 10 km lanelet2 map. The text may also be ASCII
+    bytes (any bytes-like object: a compiled writer's output), written to the file as they
+    are, neither decoded nor encoded again."""
 
     __slots__ = ("text",)
 
-    def __init__(self, text: str) -> None:
+    def __init__(self, text: str | bytes | memoryview) -> None:
         self.text = text
 
 
@@ -83,12 +85,13 @@ def cdata(text: str) -> str:
 def to_text(root: Element, indent: str) -> str:
     """The tree as pretty-printed text (no declaration), ending without a newline, the way
     ``etree.indent(root, indent)`` then ``etree.tostring`` writes it."""
-    return "".join(_pieces(root, indent))[:-1]
+    return "".join(piece if type(piece) is str else str(piece, "ascii")
+                   for piece in _pieces(root, indent))[:-1]
 
 
 def _pieces(root: Element, indent: str) -> list[str]:
     """The tree's text in pieces, each line ending in a newline; a placed block is a piece of
-    its own, never copied."""
+    its own, never copied (bytes if its text is)."""
     out: list[str] = []
     _write(root, "", indent, out)
     return out
@@ -119,7 +122,7 @@ def _write(elem: Element, pad: str, indent: str, out: list[str]) -> None:
 
 
 #: Pieces written per call, joined (each call costs as much as ~2 kB of text), unless one of
-#: them is large (a placed block): that batch is written piece by piece, uncopied.
+#: them is large or bytes (a placed block): that batch is written piece by piece, uncopied.
 _BATCH, _LARGE = 1024, 1 << 16
 
 
@@ -135,9 +138,13 @@ def write(root: Element, path: Path, indent: str = "  ", declaration: str = DECL
         file.write(declaration)
         for start in range(0, len(pieces), _BATCH):
             batch = pieces[start:start + _BATCH]
-            if max(map(len, batch)) < _LARGE:
+            if max(map(len, batch)) < _LARGE and set(map(type, batch)) == {str}:
                 file.write("".join(batch))
-            else:
-                for piece in batch:
+                continue
+            for piece in batch:
+                if type(piece) is str:
                     file.write(piece)
+                else:  # ASCII bytes: to the file's bytes, after the text before them
+                    file.flush()
+                    file.buffer.write(piece)
     return path
