@@ -398,17 +398,22 @@ def _way(wid: int, nodes, tags: tuple) -> str:
     return _element("way", wid, f'<nd ref="{refs}"/>{_INNER}{_tag_lines(tags)}')
 
 
-def _planned_ways(plan: _Plan, way_ids: dict) -> list[str]:
-    """:func:`_way` of each planned way, their ``<nd>`` lines written by a compiled writer
-    (a million node refs as Python ints and strings took a tenth of the file's time)."""
-    if not plan.ways:
-        return []
-    ends = np.array([(way.first, way.inner.start, len(way.inner), way.last)
-                     for way in plan.ways.values()], np.int64).reshape(-1, 4)
-    refs = _nd_lines(*ends.T.copy(), np.frombuffer(_INNER.encode(), np.uint8).copy())
-    return [_element("way", way_ids[key], f"{nds}{_INNER}{_tag_lines(way.tags)}")
-            for (key, way), nds in zip(plan.ways.items(), str(refs.data, "ascii").split("\0"),
-                                       strict=True)]
+def _planned_ways(plan: _Plan, first_id: int) -> memoryview:
+    """:func:`_way` of each planned way (ids ``first_id`` on, in plan order), joined as the
+    root's children, as ASCII bytes from a compiled writer (a million node refs as Python ints
+    and strings took a tenth of the file's time, formatting 80k ways another tenth)."""
+    tags: dict[tuple, int] = {}  # each way's tags as an index into the few tag tuples
+    rows = np.array([(way.first, way.inner.start, len(way.inner), way.last,
+                      tags.setdefault(way.tags, len(tags))) for way in plan.ways.values()],
+                    np.int64).reshape(-1, 5)
+    ends = [f"{_INNER}{_tag_lines(t)}\n{INDENT}</way>".encode() for t in tags]
+    return _way_lines(first_id, *rows.T.copy(), _uint8(b"".join(ends)),
+                      np.cumsum([0, *map(len, ends)]), _uint8(_INNER.encode()),
+                      _uint8(f"\n{INDENT}".encode())).data
+
+
+def _uint8(text: bytes) -> np.ndarray:
+    return np.frombuffer(text, np.uint8).copy()
 
 
 def _relation(rid: int, members: list[tuple[str, int, str]], tags: str) -> str:
@@ -527,32 +532,46 @@ def _node_lines(ids, lat_units, lat_negative, lon_units, lon_negative, separator
     return out[:pos]
 
 
-_ND_PARTS = tuple(np.frombuffer(text, np.uint8).copy() for text in (b'<nd ref="', b'"/>'))
+@compiled(I8(U1_1D, I8, U1_1D, I8, I8))
+def _put(out, pos, text, start, stop):  # pragma: no cover - compiled
+    """:func:`_copy` of ``text[start:stop]``, a writable array."""
+    for i in range(start, stop):
+        out[pos + i - start] = text[i]
+    return pos + stop - start
 
 
-@compiled(U1_1D(I8_1D, I8_1D, I8_1D, I8_1D, U1_1D))
-def _nd_lines(first, inner, count, last, separator):  # pragma: no cover - compiled
-    """Per way the ``<nd>`` lines (joined by ``separator``) of its nodes ``first``, ``count``
-    consecutive ids from ``inner`` and ``last``, as ASCII bytes; a 0 byte after each way but
-    the last."""
-    head, tail = _ND_PARTS
+_WAY_PARTS = tuple(np.frombuffer(text, np.uint8).copy()
+                   for text in (b'<way id="', b'" visible="true" version="1">', b'<nd ref="',
+                                b'"/>'))
+
+
+@compiled(U1_1D(I8, I8_1D, I8_1D, I8_1D, I8_1D, I8_1D, U1_1D, I8_1D, U1_1D, U1_1D))
+def _way_lines(first_id, first, inner, count, last, tag, ends, ends_at, inner_separator,
+               separator):  # pragma: no cover - compiled
+    """Per way ``first_id + k`` its ``<way>`` line, the ``<nd>`` lines of its nodes ``first``,
+    ``count`` consecutive ids from ``inner`` and ``last`` (joined by ``inner_separator``) and
+    its end ``ends[ends_at[tag]:ends_at[tag + 1]]``; ways joined by ``separator``, as ASCII
+    bytes."""
+    way_head, way_tail, head, tail = _WAY_PARTS
     n_refs = len(first) * 2 + count.sum()
-    out = np.empty(n_refs * (len(head) + 20 + len(tail) + len(separator)) + len(first), np.uint8)
+    size = n_refs * (len(head) + 20 + len(tail) + len(inner_separator))
+    size += len(first) * (len(way_head) + 20 + len(way_tail) + len(separator) + ends.size)
+    out = np.empty(size, np.uint8)
     digits = np.empty(24, np.uint8)
     pos = 0
     for k in range(len(first)):
         if k:
-            out[pos] = 0
-            pos += 1
+            pos = _put(out, pos, separator, 0, len(separator))
+        pos = _copy(out, pos, way_head)
+        pos = _write_int(out, pos, first_id + k, digits)
+        pos = _copy(out, pos, way_tail)
         for i in range(count[k] + 2):
-            if i:
-                for j in range(len(separator)):
-                    out[pos + j] = separator[j]
-                pos += len(separator)
+            pos = _put(out, pos, inner_separator, 0, len(inner_separator))
             node = first[k] if i == 0 else last[k] if i == count[k] + 1 else inner[k] + i - 1
             pos = _copy(out, pos, head)
             pos = _write_int(out, pos, node, digits)
             pos = _copy(out, pos, tail)
+        pos = _put(out, pos, ends, ends_at[tag[k]], ends_at[tag[k] + 1])
     return out[:pos]
 
 
@@ -589,7 +608,7 @@ def lanelet2_tree(hd: HDMap) -> Element:
     ids = _Ids()
     plan = _plan_ways(hd)
     _assign_nodes(hd, plan, ids)
-    way_ids = {key: ids.new() for key in plan.ways}
+    way_ids = {key: ids.new() for key in plan.ways}  # consecutive, in plan order
     signals, signal_ways = _signals(hd, plan, ids)
     regulatory = {lane: s.id for s in signals for lane in s.lanes}
 
@@ -597,8 +616,9 @@ def lanelet2_tree(hd: HDMap) -> Element:
     _add_bounds(root, hd)
     _add_nodes(root, hd, ids)
     # Ways and then relations in id order, the order their ids were given in.
-    ways = _planned_ways(plan, way_ids)
-    ways += [_way(wid, nodes, tags) for wid, (nodes, tags) in signal_ways.items()]
+    if plan.ways:  # the root's children: lines one indent deep
+        root.append(PlacedBlock(_planned_ways(plan, next(iter(way_ids.values())))))
+    ways = [_way(wid, nodes, tags) for wid, (nodes, tags) in signal_ways.items()]
     relations = [_relation(s.id, [("way", s.light, "refers"), ("way", s.stop_line, "ref_line")],
                            _tag_lines((("type", "regulatory_element"),
                                        ("subtype", "traffic_light"))))
