@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import re
 import shutil
+import time
 
 import networkx as nx
 import numpy as np
@@ -206,6 +207,20 @@ def test_parallel_and_sequential_writes_are_identical(tmp_path):
     assert sorted(written) == ["map.osm", "map.xodr", "plain/map.con.xml",
                                "plain/map.edg.xml", "plain/map.nod.xml"]
     assert written == _digests(tmp_path / "sequential")
+
+
+def test_either_process_may_write_first_into_a_new_folder(tmp_path, monkeypatch):
+    """The folder exists before the child starts: lanelet2, written here, does not wait for
+    the child's plain files to create it (a race that a slow child lost)."""
+    write_plain = map_files.write_plain
+
+    def late_plain(hd, folder):
+        time.sleep(0.3)
+        return write_plain(hd, folder)
+
+    monkeypatch.setattr(map_files, "write_plain", late_plain)
+    map_files.write_map_files(build_hdmap(town(), GEO_ORIGIN), tmp_path / "new" / "folder")
+    assert (tmp_path / "new" / "folder" / "map.osm").is_file()
 
 
 @pytest.mark.skipif(not can_fork(), reason="writers only fork where fork exists")

@@ -633,5 +633,8 @@ def lanelet2_tree(hd: HDMap) -> Element:
 
 
 def write_lanelet2(hd: HDMap, path: Path) -> Path:
-    """Write ``hd`` as a lanelet2-format OSM file and return its path."""
-    return write(lanelet2_tree(hd), Path(path), indent=INDENT, declaration=DECLARATION)
+    """Write ``hd`` as a lanelet2-format OSM file (parent folders created) and return its
+    path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return write(lanelet2_tree(hd), path, indent=INDENT, declaration=DECLARATION)

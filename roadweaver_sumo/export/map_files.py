@@ -26,6 +26,7 @@ def write_map_files(hd: HDMap, folder: Path, *, parallel: bool = True) -> None:
     """``folder/plain/``, ``folder/map.xodr`` and ``folder/map.osm``; an error in any writer is
     raised here, after the child has ended."""
     folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)  # before the child: either process may be first
 
     def plain_and_xodr() -> None:
         write_plain(hd, folder / PLAIN_DIR)
