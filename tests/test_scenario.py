@@ -90,3 +90,30 @@ def test_demand_tops_up_when_the_first_sample_is_too_small(tmp_path, grid_net, m
     monkeypatch.setattr(demand, "OVERSUPPLY", 0.4)  # attempts ask for 0.4x, 0.8x, 1.6x
     folder = _scenario_dir(tmp_path, grid_net)
     assert len(_vehicles(write_demand(folder, vehicles=30, duration=60.0, seed=1))) == 30
+
+
+@pytest.mark.parametrize("first_share, threads", [(0.5, 2), (10.0, 1)])
+def test_demand_routes_do_not_depend_on_how_many_trips_are_routed_first_or_on_threads(
+        tmp_path, grid_net, monkeypatch, first_share, threads):
+    """Routing a prefix of the sampled trips on two threads (the default) writes the file that
+    routing every trip on one thread writes; so does a prefix too short to hold enough cars."""
+    routed = []
+
+    def counting_route(out_dir, *args, _route=demand._route):
+        trips = etree.parse(str(out_dir / demand._ROUTED_TRIPS)).getroot().findall("trip")
+        routed.append(len(trips))
+        _route(out_dir, *args)
+
+    monkeypatch.setattr(demand, "_route", counting_route)
+    default = write_demand(_scenario_dir(tmp_path, grid_net, "default"), vehicles=100,
+                           duration=200.0, seed=4).read_bytes()
+    assert routed == [112]  # 1.02 x 100 + 10 of the 125 sampled trips
+    monkeypatch.setattr(demand, "ROUTE_FIRST_SHARE", first_share)
+    monkeypatch.setattr(demand, "ROUTING_THREADS", threads)
+    other = write_demand(_scenario_dir(tmp_path, grid_net, "other"), vehicles=100,
+                         duration=200.0, seed=4).read_bytes()
+    assert other == default
+    if first_share < 1:  # 60 trips hold too few cars: then all of the sampled ones are routed
+        assert routed[1:] == [60, routed[-1]] and routed[-1] > 112
+    else:
+        assert len(routed) == 2 and routed[-1] > 112

@@ -3,7 +3,7 @@
 ``randomTrips.py`` draws origin/destination edges, but its vehicle count follows from
 ``--period`` (it can be off by one, and it drops pairs it could not place), and its own validation
 routes every trip twice more. So we ask it for more trips than needed, without validation, route
-them all once with duarouter (``--ignore-errors`` drops the unroutable ones: that is the
+them once with duarouter (``--ignore-errors`` drops the unroutable ones: that is the
 validation), keep the first ``vehicles`` routes between distinct edges, and give them ids
 ``veh0..`` and evenly spread departures over [0, duration). Routes do not depend on the departure
 time (static free-flow weights), so re-timing keeps them valid. If too few trips were routable,
@@ -20,7 +20,12 @@ Sampling choices (all passed to randomTrips):
 * ``departLane="best" departSpeed="max"``: cars enter on a lane that leads along their route, as
   drivers do, instead of all on the rightmost lane (which causes needless lane-change jams).
 
-duarouter uses A* (same shortest paths as Dijkstra, ~2x faster on a 900-junction grid).
+duarouter uses A* (same shortest paths as Dijkstra, ~2x faster on a 900-junction grid) on
+``ROUTING_THREADS`` threads: each trip's route is a search of its own on static weights, so the
+routes do not depend on the threads (tests compare). Routing is most of the demand's time on a
+large map (a 10 km map: 6,250 A* searches, 17 s on one thread), so only the first trips, a few
+more than the vehicles asked for, are routed; the rest only if too few of those were routable.
+The kept routes are the first ones either way, so the file is the same.
 """
 
 from __future__ import annotations
@@ -40,8 +45,13 @@ DEMAND_FILE = "demand.rou.xml"
 # Temporary files, deleted before write_demand returns (also on failure).
 _SAMPLE_TRIPS = "demand.sample.trips.tmp.xml"
 _SAMPLE_ROUTES = "demand.sample.rou.tmp.xml"
+_ROUTED_TRIPS = "demand.routed.trips.tmp.xml"
 
 OVERSUPPLY = 1.25  # first request 25 % more trips than needed; doubled on each further attempt
+#: Trips routed first, as a share of the vehicles (plus ROUTE_FIRST_EXTRA): on generated maps
+#: about one trip in a thousand is unroutable or starts and ends on one edge.
+ROUTE_FIRST_SHARE, ROUTE_FIRST_EXTRA = 1.02, 10
+ROUTING_THREADS = 2
 MAX_ATTEMPTS = 4
 MIN_DISTANCE_SHARE = 0.2  # of the map diagonal
 MIN_DISTANCE_CAP_M = 1000.0
@@ -62,7 +72,7 @@ def write_demand(
     if not (out_dir / net_file).exists():
         raise RoadweaverError(f"demand: network {out_dir / net_file} not found")
     min_distance = min(MIN_DISTANCE_SHARE * _net_diagonal(out_dir / net_file), MIN_DISTANCE_CAP_M)
-    with _removed_afterwards(out_dir, [_SAMPLE_TRIPS, _SAMPLE_ROUTES]):
+    with _removed_afterwards(out_dir, [_SAMPLE_TRIPS, _ROUTED_TRIPS, _SAMPLE_ROUTES]):
         routes = _sample_routes(out_dir, net_file, vehicles, duration, seed, min_distance)
     _retime(routes, duration)
     return write_xml(routes, out_dir / DEMAND_FILE)
@@ -77,19 +87,37 @@ def _sample_routes(
     for attempt in range(MAX_ATTEMPTS):
         wanted = math.ceil(vehicles * OVERSUPPLY * 2**attempt)
         _random_trips(out_dir, net_file, wanted, duration, seed, min_distance)
-        _route(out_dir, net_file, seed)
-        root = etree.parse(str(out_dir / _SAMPLE_ROUTES)).getroot()
-        routed = [v for v in root.findall("vehicle") if _distinct_ends(v)]
-        found = len(routed)
-        if found >= vehicles:
-            for vehicle in root.findall("vehicle"):
-                root.remove(vehicle)
-            root.extend(routed[:vehicles])
-            return root
+        first = math.ceil(vehicles * ROUTE_FIRST_SHARE) + ROUTE_FIRST_EXTRA
+        for trips in (first, None):
+            root, routed, all_routed = _routed(out_dir, net_file, seed, trips)
+            found = len(routed)
+            if found >= vehicles:
+                for vehicle in root.findall("vehicle"):
+                    root.remove(vehicle)
+                root.extend(routed[:vehicles])
+                return root
+            if all_routed:
+                break
     raise RoadweaverError(
         f"demand: only {found} of {vehicles} trips are routable with origin and destination "
         f"at least {min_distance:.0f} m apart; is the network connected?"
     )
+
+
+def _routed(out_dir: Path, net_file: str, seed: int, trips: int | None):
+    """duarouter's ``<routes>`` for the first ``trips`` sampled trips (all of them with None),
+    its vehicles between distinct edges in departure order, and whether every sampled trip
+    was routed."""
+    root = etree.parse(str(out_dir / _SAMPLE_TRIPS)).getroot()
+    sampled = root.findall("trip")
+    all_routed = trips is None or trips >= len(sampled)
+    for trip in sampled[len(sampled) if all_routed else trips:]:
+        root.remove(trip)
+    etree.ElementTree(root).write(str(out_dir / _ROUTED_TRIPS), xml_declaration=True,
+                                  encoding="UTF-8")
+    _route(out_dir, net_file, seed)
+    routes = etree.parse(str(out_dir / _SAMPLE_ROUTES)).getroot()
+    return routes, [v for v in routes.findall("vehicle") if _distinct_ends(v)], all_routed
 
 
 def _distinct_ends(vehicle: etree._Element) -> bool:
@@ -116,10 +144,11 @@ def _random_trips(
 
 
 def _route(out_dir: Path, net_file: str, seed: int) -> None:
-    """Route the sampled trips; unroutable ones are dropped (``--ignore-errors``) and counted."""
+    """Route the trips to route; unroutable ones are dropped (``--ignore-errors``)."""
     args = [
-        binary("duarouter"), "-n", net_file, "-r", _SAMPLE_TRIPS, "-o", _SAMPLE_ROUTES,
+        binary("duarouter"), "-n", net_file, "-r", _ROUTED_TRIPS, "-o", _SAMPLE_ROUTES,
         "--alternatives-output", "NUL", "--routing-algorithm", "astar", "--ignore-errors",
+        "--routing-threads", str(ROUTING_THREADS),
         "--no-warnings", "--seed", str(seed), "--no-step-log",
     ]  # fmt: skip
     run(args, out_dir, "duarouter")
