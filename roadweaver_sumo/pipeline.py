@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable, Iterator
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,7 +22,7 @@ from .gc_pause import cyclic_gc_paused
 from .hdmap import build_hdmap, hdmap_metrics
 from .metrics import graph_metrics
 from .render import matplotlib_parts, net_drawing, render_preview
-from .scenario.demand import write_demand
+from .scenario.demand import DrawnTrips, draw_first_trips, write_demand
 from .scenario.sumocfg import NET_FILE, write_sumocfg
 from .skeleton import make_skeleton
 from .spec import ScenarioSpec
@@ -106,10 +106,12 @@ def build_scenario_files(
 ) -> dict:
     """Every stage up to the runnable scenario; returns the generation metrics for the report.
 
-    netconvert and the demand tools run from a worker thread, which only waits for them, so this
+    netconvert and the demand tools run from worker threads, which only wait for them, so this
     process does its own work on the other core meanwhile: the generation metrics while
     netconvert builds the net, then ``after_net`` (make-scenario measures the net there for
-    validation) while the demand is sampled and routed."""
+    validation) while the demand is sampled and routed. When netconvert runs a second time
+    (``export.netconvert``), randomTrips draws the demand's trips from its first net, whose
+    edges are the same, meanwhile."""
 
     @contextmanager
     def stage(name: str) -> Iterator[None]:
@@ -118,13 +120,25 @@ def build_scenario_files(
         yield
         stages[name] = time.perf_counter() - start
 
+    drawn: list[Future] = []  # the demand's first trips, drawn from netconvert's draft
+
+    def draw_trips(draft: Path) -> DrawnTrips:
+        try:
+            return draw_first_trips(folder, draft.name, vehicles=spec.vehicles,
+                                    duration=spec.duration, seed=spec.seed)
+        finally:
+            draft.unlink()
+
     def netconvert() -> None:
         with stage("netconvert"):
-            run_netconvert(folder, spec.netconvert_template)
+            run_netconvert(folder, spec.netconvert_template,
+                           on_draft=lambda draft: drawn.append(sumo_tools.submit(draw_trips,
+                                                                                 draft)))
 
     def demand() -> None:
         with stage("demand"):
-            write_demand(folder, vehicles=spec.vehicles, duration=spec.duration, seed=spec.seed)
+            write_demand(folder, vehicles=spec.vehicles, duration=spec.duration, seed=spec.seed,
+                         first_trips=drawn[0].result() if drawn else None)
             write_sumocfg(folder, duration=spec.duration, seed=spec.seed)
 
     with cyclic_gc_paused():
@@ -137,7 +151,8 @@ def build_scenario_files(
         with stage("export"):
             write_map_files(hdmap, folder)
             (folder / SPEC_FILE).write_text(spec.to_json(), encoding="utf-8")
-    with ThreadPoolExecutor(1, thread_name_prefix="sumo-tools") as sumo_tools:
+    # Two threads: randomTrips may read netconvert's draft while netconvert runs again.
+    with ThreadPoolExecutor(2, thread_name_prefix="sumo-tools") as sumo_tools:
         net_built = sumo_tools.submit(netconvert)
         generation = {
             "target_density": spec.density,

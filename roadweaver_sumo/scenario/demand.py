@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 from lxml import etree
@@ -46,6 +47,7 @@ DEMAND_FILE = "demand.rou.xml"
 _SAMPLE_TRIPS = "demand.sample.trips.tmp.xml"
 _SAMPLE_ROUTES = "demand.sample.rou.tmp.xml"
 _ROUTED_TRIPS = "demand.routed.trips.tmp.xml"
+_DRAWN_TRIPS = "demand.drawn.trips.tmp.xml"
 
 OVERSUPPLY = 1.25  # first request 25 % more trips than needed; doubled on each further attempt
 #: Trips routed first, as a share of the vehicles (plus ROUTE_FIRST_EXTRA): on generated maps
@@ -59,11 +61,34 @@ VEHICLE_CLASS = "passenger"
 TRIP_ATTRIBUTES = 'departLane="best" departSpeed="max"'
 
 
+@dataclass(frozen=True)
+class DrawnTrips:
+    """randomTrips' first sample for :func:`write_demand`, drawn ahead of time from a draft of
+    the net with the same edges (``export.netconvert``'s ``on_draft``), and the minimum trip
+    distance it was drawn with."""
+
+    path: Path
+    min_distance: float
+
+
+def draw_first_trips(out_dir: Path, net_file: str, *, vehicles: int, duration: float,
+                     seed: int) -> DrawnTrips:
+    """The trips :func:`write_demand`'s first attempt samples, from ``out_dir/net_file``."""
+    out_dir = Path(out_dir)
+    min_distance = _min_distance(out_dir / net_file)
+    _random_trips(out_dir, net_file, _wanted(vehicles, 0), duration, seed, min_distance,
+                  _DRAWN_TRIPS)
+    return DrawnTrips(out_dir / _DRAWN_TRIPS, min_distance)
+
+
 def write_demand(
-    out_dir: Path, *, vehicles: int, duration: float, seed: int, net_file: str = "map.net.xml"
+    out_dir: Path, *, vehicles: int, duration: float, seed: int, net_file: str = "map.net.xml",
+    first_trips: DrawnTrips | None = None,
 ) -> Path:
     """Write ``out_dir/demand.rou.xml`` with exactly ``vehicles`` routed cars departing in
-    [0, duration); raise RoadweaverError when the net cannot provide that many routable trips."""
+    [0, duration); raise RoadweaverError when the net cannot provide that many routable trips.
+    ``first_trips`` (:func:`draw_first_trips`) stand in for the first sample when they were
+    drawn with this net's minimum distance, which they then equal."""
     out_dir = Path(out_dir)
     if vehicles < 1 or duration <= 0:
         raise RoadweaverError(
@@ -71,22 +96,39 @@ def write_demand(
         )
     if not (out_dir / net_file).exists():
         raise RoadweaverError(f"demand: network {out_dir / net_file} not found")
-    min_distance = min(MIN_DISTANCE_SHARE * _net_diagonal(out_dir / net_file), MIN_DISTANCE_CAP_M)
-    with _removed_afterwards(out_dir, [_SAMPLE_TRIPS, _ROUTED_TRIPS, _SAMPLE_ROUTES]):
-        routes = _sample_routes(out_dir, net_file, vehicles, duration, seed, min_distance)
+    min_distance = _min_distance(out_dir / net_file)
+    temporary = [_SAMPLE_TRIPS, _DRAWN_TRIPS, _ROUTED_TRIPS, _SAMPLE_ROUTES]
+    with _removed_afterwards(out_dir, temporary):
+        if first_trips is not None and first_trips.min_distance == min_distance:
+            first_trips.path.replace(out_dir / _SAMPLE_TRIPS)
+            drawn = True
+        else:
+            drawn = False
+        routes = _sample_routes(out_dir, net_file, vehicles, duration, seed, min_distance, drawn)
     _retime(routes, duration)
     return write_xml(routes, out_dir / DEMAND_FILE)
 
 
+def _min_distance(net_path: Path) -> float:
+    return min(MIN_DISTANCE_SHARE * _net_diagonal(net_path), MIN_DISTANCE_CAP_M)
+
+
+def _wanted(vehicles: int, attempt: int) -> int:
+    return math.ceil(vehicles * OVERSUPPLY * 2**attempt)
+
+
 def _sample_routes(
-    out_dir: Path, net_file: str, vehicles: int, duration: float, seed: int, min_distance: float
+    out_dir: Path, net_file: str, vehicles: int, duration: float, seed: int, min_distance: float,
+    first_drawn: bool = False,
 ) -> etree._Element:
     """duarouter's ``<routes>`` cut down to its first ``vehicles`` routed cars between distinct
-    edges, asking randomTrips for more (same seed, larger oversupply) until there are enough."""
+    edges, asking randomTrips for more (same seed, larger oversupply) until there are enough.
+    ``first_drawn``: the first attempt's trips are in place already."""
     found = 0
     for attempt in range(MAX_ATTEMPTS):
-        wanted = math.ceil(vehicles * OVERSUPPLY * 2**attempt)
-        _random_trips(out_dir, net_file, wanted, duration, seed, min_distance)
+        if attempt or not first_drawn:
+            _random_trips(out_dir, net_file, _wanted(vehicles, attempt), duration, seed,
+                          min_distance)
         first = math.ceil(vehicles * ROUTE_FIRST_SHARE) + ROUTE_FIRST_EXTRA
         for trips in (first, None):
             root, routed, all_routed = _routed(out_dir, net_file, seed, trips)
@@ -126,12 +168,13 @@ def _distinct_ends(vehicle: etree._Element) -> bool:
 
 
 def _random_trips(
-    out_dir: Path, net_file: str, count: int, duration: float, seed: int, min_distance: float
+    out_dir: Path, net_file: str, count: int, duration: float, seed: int, min_distance: float,
+    out: str = _SAMPLE_TRIPS,
 ) -> None:
     """Run randomTrips.py (seeded, unvalidated: duarouter validates next) for ~``count`` trips."""
     args = [
         *python_tool("randomTrips.py"),
-        "-n", net_file, "-o", _SAMPLE_TRIPS, "--no-validate",
+        "-n", net_file, "-o", out, "--no-validate",
         "--seed", str(seed), "--begin", "0", "--end", repr(float(duration)),
         "--period", repr(duration / count),
         "--length", "--min-distance", f"{min_distance:.1f}",
@@ -139,7 +182,7 @@ def _random_trips(
         "--trip-attributes", TRIP_ATTRIBUTES,
     ]  # fmt: skip
     run(args, out_dir, "randomTrips.py")
-    if not (out_dir / _SAMPLE_TRIPS).exists():
+    if not (out_dir / out).exists():
         raise RoadweaverError("demand: randomTrips.py wrote no trips; does the net allow cars?")
 
 
