@@ -26,28 +26,38 @@ MIN_FOE_GAP_M = 1.0
 
 def crowded_connections(net_file: Path, min_gap: float = MIN_FOE_GAP_M) -> list[dict]:
     """``from``/``to``/``fromLane``/``toLane`` of every connection whose waiting point lies
-    nearer than ``min_gap`` to a foe's internal lane, in the order of the net file."""
+    nearer than ``min_gap`` to a foe's internal lane, in the order of the net file. (The
+    distances are measured in one shapely call: a 10 km net has ~36,000 foe lanes.)"""
     root = etree.parse(str(net_file)).getroot()
     shapes = {lane.get("id"): lane.get("shape") for lane in root.iter("lane")}
-    crowded_vias = set()
+    vias, points, foe_shapes, owner = [], [], [], []
     for junction in root.iter("junction"):
         if junction.get("type") != "internal":
             continue
         incoming = junction.get("incLanes", "").split()
-        foes = [lane for lane in junction.get("intLanes", "").split()
+        foes = [shapes[lane] for lane in junction.get("intLanes", "").split()
                 if lane not in incoming and lane in shapes]
         if not foes or not incoming:
             continue
-        point = shapely.Point(float(junction.get("x")), float(junction.get("y")))
-        gap = min(point.distance(_line(shapes[lane])) for lane in foes)
-        if gap < min_gap:
-            crowded_vias.add(incoming[0])  # the internal lane that leads to the waiting point
+        owner += [len(vias)] * len(foes)
+        vias.append(incoming[0])  # the internal lane that leads to the waiting point
+        points.append((float(junction.get("x")), float(junction.get("y"))))
+        foe_shapes += foes
+    if not vias:
+        return []
+    gaps = shapely.distance(shapely.points(np.array(points))[owner], _lines(foe_shapes))
+    starts = np.flatnonzero(np.r_[True, np.diff(owner) != 0])
+    nearest = np.minimum.reduceat(gaps, starts)
+    crowded_vias = {vias[k] for k in np.flatnonzero(nearest < min_gap).tolist()}
     return [{key: c.get(key) for key in ("from", "to", "fromLane", "toLane")}
             for c in root.iter("connection") if c.get("via") in crowded_vias]
 
 
-def _line(shape: str) -> shapely.LineString:
-    return shapely.LineString(np.array([p.split(",") for p in shape.split()], dtype=float))
+def _lines(shapes: list[str]) -> np.ndarray:
+    """SUMO ``shape`` strings ("x,y x,y ...") as LineStrings, from one shapely call."""
+    counts = [shape.count(" ") + 1 for shape in shapes]
+    xy = np.array(" ".join(shapes).replace(",", " ").split(), dtype=float).reshape(-1, 2)
+    return shapely.linestrings(xy, indices=np.repeat(np.arange(len(shapes)), counts))
 
 
 def wait_at_stop_line(connection_file: Path, connections: list[dict]) -> int:
