@@ -99,11 +99,9 @@ def write_demand(
     min_distance = _min_distance(out_dir / net_file)
     temporary = [_SAMPLE_TRIPS, _DRAWN_TRIPS, _ROUTED_TRIPS, _SAMPLE_ROUTES]
     with _removed_afterwards(out_dir, temporary):
-        if first_trips is not None and first_trips.min_distance == min_distance:
+        drawn = first_trips is not None and first_trips.min_distance == min_distance
+        if drawn:
             first_trips.path.replace(out_dir / _SAMPLE_TRIPS)
-            drawn = True
-        else:
-            drawn = False
         routes = _sample_routes(out_dir, net_file, vehicles, duration, seed, min_distance, drawn)
     _retime(routes, duration)
     return write_xml(routes, out_dir / DEMAND_FILE)
