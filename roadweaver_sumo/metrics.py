@@ -136,8 +136,9 @@ def sharp_bends(G: nx.Graph) -> int:
 
 
 def sharp_bend_roads(G: nx.Graph, turn_deg: float = SHARP_BEND_DEG,
-                     reach_m: float = SHARP_BEND_REACH_M) -> list:
-    """The edges counted by :func:`sharp_bends`.
+                     reach_m: float = SHARP_BEND_REACH_M, shapes=None) -> list:
+    """The edges counted by :func:`sharp_bends`; with ``shapes`` (polylines -> polylines), of
+    the roads as that function gives them.
 
     The change is taken over the steps, so a bend rounded into many tiny segments counts as one
     turn. One vectorised pass over all roads sums the turning within ``reach_m`` after each
@@ -147,6 +148,8 @@ def sharp_bend_roads(G: nx.Graph, turn_deg: float = SHARP_BEND_DEG,
     coords = [G.edges[e]["coords"] for e in edges]
     if not coords:
         return []
+    if shapes is not None:
+        coords = shapes(coords)
     owner = np.repeat(np.arange(len(coords)), [len(c) for c in coords])
     step = np.diff(np.concatenate(coords), axis=0)
     length = np.hypot(*step.T)

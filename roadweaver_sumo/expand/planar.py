@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import heapq
 import math
+from functools import partial
 
 import networkx as nx
 import numba as nb
@@ -804,26 +805,78 @@ BEND_CHORD = 14.0
 BEND_CUT_STEP = 2.0  # metres: the cut widens in these steps until the arms are that far apart
 
 
+#: netconvert keeps a road's shape as the plain files give it (0.01 m) less every point closer
+#: than POSITION_EPS (0.1 m) to the point kept before it (``removeDoublePoints``), walking the
+#: shape from one end or the other (of 260 edges of one net, 258 came out as one of the two
+#: walks gives them). A corner rounded in steps of a few centimetres can turn sharper there:
+#: 119.9° in our graph, 120.2° in the net, on one map of 200. Bends within NET_BEND_MARGIN_DEG
+#: of the limit in either walk's shape are cut too.
+NET_DECIMALS, NET_POINT_EPS, NET_BEND_MARGIN_DEG = 2, 0.1, 3.0
+
+
 def cut_sharp_bends(G: nx.Graph) -> None:
-    """Cut across every sharp bend (see ``BEND_CHORD``) unless the cut would cross a road."""
+    """Cut across every sharp bend (see ``BEND_CHORD``) unless the cut would cross a road: the
+    bends of the roads as they are and, cut on that shape, those that the road's shape in the
+    net may have (:func:`net_shapes`)."""
     bent = sharp_bend_roads(G)
-    if not bent:
+    near_limit = SHARP_BEND_DEG - NET_BEND_MARGIN_DEG
+    in_net = {}
+    for reverse in (False, True):
+        found = sharp_bend_roads(G, near_limit, shapes=partial(net_shapes, reverse=reverse))
+        for e in found:
+            if e not in bent and e not in in_net:
+                in_net[e] = net_shapes([G.edges[e]["coords"]], reverse=reverse)[0]
+    if not bent and not in_net:
         return
+    for e, shape in in_net.items():
+        G.edges[e]["coords"] = shape
     roads = sorted_edge_list(G)
     edges = [(u, v) for u, v, _ in roads]
     tree = shapely.STRtree(road_lines(roads))
-    for u, v in sorted(bent):
-        cut = round_corners(cut_across_bends(G.edges[u, v]["coords"]), 30.0, 20.0)
+    for u, v in sorted([*bent, *in_net]):
+        limit = near_limit if (u, v) in in_net else SHARP_BEND_DEG
+        cut = round_corners(cut_across_bends(G.edges[u, v]["coords"], limit), 30.0, 20.0)
         line = shapely.LineString(cut)
         crossed = [edges[k] for k in tree.query(line, predicate="intersects")]
         if all(_touches_only_at_shared_nodes(G, line, (u, v), e) for e in crossed):
             G.edges[u, v]["coords"] = cut
 
 
-def cut_across_bends(coords: np.ndarray) -> np.ndarray:
-    """``coords`` with each sharp bend cut across where its arms are ``BEND_CHORD`` apart
-    (or, a bend near the end, from the end node on)."""
-    limit = math.radians(SHARP_BEND_DEG)
+def net_shapes(coords: list, reverse: bool = False) -> list:
+    """The polylines as netconvert may store them (``NET_DECIMALS``, ``NET_POINT_EPS``; its
+    walk from the last point with ``reverse``). Only polylines with two consecutive points
+    that close lose points; the rest are rounded in one pass over all of them."""
+    ends = np.cumsum([len(c) for c in coords])
+    points = np.round(np.concatenate(coords), NET_DECIMALS)
+    close = np.hypot(*np.diff(points, axis=0).T) < NET_POINT_EPS
+    close[ends[:-1] - 1] = False  # the step from one polyline to the next
+    out = np.split(points, ends[:-1])
+    for k in np.unique(np.searchsorted(ends, np.flatnonzero(close), side="right")):
+        walked = out[k][::-1] if reverse else out[k]
+        kept = _without_double_points(walked)
+        out[k] = kept[::-1] if reverse else kept
+    return out
+
+
+def _without_double_points(pts: np.ndarray) -> np.ndarray:
+    """SUMO's ``PositionVector::removeDoublePoints(POSITION_EPS)``: a point closer than that to
+    the last kept one goes, but the end stays and the point kept before it goes."""
+    keep = [0]
+    for i in range(1, len(pts)):
+        if math.hypot(*(pts[i] - pts[keep[-1]])) < NET_POINT_EPS:
+            if i == len(pts) - 1:
+                if len(keep) > 1:
+                    keep.pop()
+                keep.append(i)
+            continue
+        keep.append(i)
+    return pts[keep]
+
+
+def cut_across_bends(coords: np.ndarray, turn_deg: float = SHARP_BEND_DEG) -> np.ndarray:
+    """``coords`` with each bend sharper than ``turn_deg`` cut across where its arms are
+    ``BEND_CHORD`` apart (or, a bend near the end, from the end node on)."""
+    limit = math.radians(turn_deg)
     for _ in range(4):
         centre = sharp_bend_at(coords, limit, SHARP_BEND_REACH_M)
         if centre is None:
