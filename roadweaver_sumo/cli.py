@@ -282,16 +282,23 @@ def _render(args) -> int:
 
 
 def _add_train_commands(sub) -> None:
-    """``train vqvae`` and ``train maskgit`` (the learned skeleton, paper §III-B)."""
-    from .generative.settings import MASKGIT_SETTINGS, VQVAE_SETTINGS
+    """``train vqvae``, ``train maskgit`` and ``train distil`` (the learned skeleton, paper
+    §III-B; distil: the transformer's guidance, so sampling needs one pass per step)."""
+    from .generative.settings import DISTIL_SETTINGS, MASKGIT_SETTINGS, VQVAE_SETTINGS
 
     train = sub.add_parser("train", help="train the learned skeleton's models")
     kinds = train.add_subparsers(dest="model", required=True, parser_class=_Parser)
-    for name, defaults in (("vqvae", VQVAE_SETTINGS), ("maskgit", MASKGIT_SETTINGS)):
-        p = kinds.add_parser(name, help=f"train the {name} on a prepared dataset")
+    for name, defaults, what in (
+            ("vqvae", VQVAE_SETTINGS, "train the VQ-VAE"),
+            ("maskgit", MASKGIT_SETTINGS, "train the masked transformer"),
+            ("distil", DISTIL_SETTINGS, "distil a trained transformer's guidance into a copy")):
+        p = kinds.add_parser(name, help=f"{what} on a prepared dataset")
         p.add_argument("--data", type=Path, required=True, help="folder from 'data prepare'")
-        if name == "maskgit":
+        if name != "vqvae":
             p.add_argument("--vqvae", type=Path, required=True, help="trained VQ-VAE checkpoint")
+        if name == "distil":
+            p.add_argument("--teacher", type=Path, required=True,
+                           help="trained transformer checkpoint (from 'train maskgit')")
         p.add_argument("--out", type=Path, required=True, help="checkpoint file to write")
         p.add_argument("--steps", type=int, default=defaults.steps)
         p.add_argument("--batch", type=int, default=defaults.batch)
@@ -315,18 +322,26 @@ def _train(args) -> int:
         raise RoadweaverError(f"{args.data} is not a prepared dataset (no manifest.json)")
     if args.steps < 1 or args.batch < 1 or not args.lr > 0 or args.seed < 0:
         raise RoadweaverError("--steps and --batch must be >= 1, --lr > 0 and --seed >= 0")
-    base = defaults.VQVAE_SETTINGS if args.model == "vqvae" else defaults.MASKGIT_SETTINGS
+    base = {"vqvae": defaults.VQVAE_SETTINGS, "maskgit": defaults.MASKGIT_SETTINGS,
+            "distil": defaults.DISTIL_SETTINGS}[args.model]
     settings = replace(base, steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed)
     log = (lambda msg: None) if args.quiet else (lambda msg: print(f"  {msg}", file=sys.stderr))
     if args.model == "vqvae":
         meta = training.train_vqvae(args.data, args.out, settings, defaults.VQVAE_CONFIG, log=log)
         print(f"wrote {args.out}: held-out road IoU {meta['heldout']['road_iou']:.3f}, "
               f"{meta['seconds'] / 60:.1f} min")
-    else:
+    elif args.model == "maskgit":
         meta = training.train_maskgit(args.data, args.vqvae, args.out, settings,
                                       defaults.MASKGIT_CONFIG, log=log)
         print(f"wrote {args.out}: held-out loss {meta['history'][-1]['heldout_loss']:.3f}, "
               f"{meta['seconds'] / 60:.1f} min")
+    else:
+        meta = training.distil_guidance(args.data, args.vqvae, args.teacher, args.out, settings,
+                                        log=log)
+        run = meta["distillation"]
+        print(f"wrote {args.out}: held-out cross-entropy to the guided teacher "
+              f"{run['history'][0]['heldout_loss']:.3f} -> {run['history'][-1]['heldout_loss']:.3f}"
+              f", {run['seconds'] / 60:.1f} min")
     return 0
 
 

@@ -15,6 +15,7 @@ import torch
 
 from roadweaver_sumo import cli
 from roadweaver_sumo.data.prepare import prepare_dataset
+from roadweaver_sumo.errors import RoadweaverError
 from roadweaver_sumo.generative import inference
 from roadweaver_sumo.generative.checkpoint import (
     SHIPPED_MASKGIT,
@@ -37,7 +38,7 @@ from roadweaver_sumo.generative.sampling import (
     window_starts,
 )
 from roadweaver_sumo.generative.settings import MaskGITConfig, TrainSettings, VQVAEConfig
-from roadweaver_sumo.generative.training import train_maskgit, train_vqvae
+from roadweaver_sumo.generative.training import distil_guidance, train_maskgit, train_vqvae
 from roadweaver_sumo.skeleton.learned import learned_skeleton, stroke_classes
 from roadweaver_sumo.spec import ScenarioSpec
 
@@ -123,6 +124,25 @@ def test_training_is_reproducible_by_seed(tiny_dataset, tiny_models, tmp_path):
                 log=lambda m: None)
     c, _ = read_checkpoint(tmp_path / "other.npz", "vqvae")
     assert not all(np.array_equal(a[k], c[k]) for k in a)
+
+
+def test_guidance_distillation_moves_the_student_to_the_guided_teacher(tiny_dataset, tiny_models,
+                                                                       tmp_path):
+    """The distilled copy predicts the teacher's guided distribution better than the teacher's
+    own conditional prediction does, and samples without guidance (one pass per step)."""
+    root, _, _ = tiny_models
+    settings = TrainSettings(steps=30, batch=16, lr=1e-3, eval_every=15)
+    meta = distil_guidance(tiny_dataset, root / "vq.npz", root / "mg.npz", tmp_path / "d.npz",
+                           settings, log=lambda m: None)
+    history = meta["distillation"]["history"]
+    assert [h["step"] for h in history] == [0, 15, 30]
+    assert history[-1]["heldout_loss"] < history[0]["heldout_loss"]
+    assert meta["guidance_distilled"] == 1.0 and meta["config"] == load_maskgit(root / "mg.npz")[1]["config"]
+    assert Generator.load(root / "vq.npz", tmp_path / "d.npz").guidance == 0.0
+    assert Generator.load(root / "vq.npz", root / "mg.npz").guidance == GUIDANCE > 0
+    with pytest.raises(RoadweaverError, match="already distilled"):
+        distil_guidance(tiny_dataset, root / "vq.npz", tmp_path / "d.npz", tmp_path / "e.npz",
+                        settings, log=lambda m: None)
 
 
 def test_second_token_group_is_predicted_given_the_first():
@@ -261,21 +281,23 @@ def test_group_norm_statistics_of_all_groups_in_one_pass_are_those_group_by_grou
 
 
 @pytest.mark.skipif(not SHIPPED_MASKGIT.is_file(), reason="weights not trained yet")
-def test_out_of_order_sampling_gives_the_raster_order_tokens(monkeypatch):
+@pytest.mark.parametrize("guidance", [0.0, 1.0])  # the shipped model's, and two rows a step
+def test_out_of_order_sampling_gives_the_raster_order_tokens(monkeypatch, guidance):
     """sample_tokens, which samples windows side by side as their context is ready, gives
     exactly the tokens of the plain loop: window after window in raster order, one random
     stream, full trunks (a canvas whose last windows have a shorter stride)."""
     gen = Generator.load()
+    assert gen.guidance == 0.0  # the shipped transformer has its guidance distilled
     c = np.zeros(11, np.float32)
     shape, seed = (40, 30), 5
-    tokens = sample_tokens(gen, c, shape, seed)
+    tokens = sample_tokens(gen, c, shape, seed, guidance=guidance)
 
     g, G = gen.grid, gen.sampler.cfg.groups
     monkeypatch.setattr(MaskGITSampler, "_masked_features",
                         lambda self, tokens, masked, mods: self.trunk(tokens, masked, mods)[masked])
     canvas = np.zeros((*shape, G), dtype=np.int64)
     done = np.zeros(shape, dtype=bool)
-    modulations = gen.sampler.condition(gen.standardise(c), GUIDANCE)
+    modulations = gen.sampler.condition(gen.standardise(c), guidance)
     rng = TorchUniform(seed)
     with two_threads() as pool:
         for y in window_starts(shape[0], g):
@@ -284,7 +306,7 @@ def test_out_of_order_sampling_gives_the_raster_order_tokens(monkeypatch):
                 out = gen.sampler.sample(
                     modulations, rng, steps=max(2, math.ceil(STEPS * (1 - known_mask.mean()))),
                     known=canvas[y:y + g, x:x + g].reshape(-1, G), known_mask=known_mask,
-                    guidance=GUIDANCE, temperature=TEMPERATURE, map_rows=pool.map)
+                    guidance=guidance, temperature=TEMPERATURE, map_rows=pool.map)
                 canvas[y:y + g, x:x + g] = out.reshape(g, g, G)
                 done[y:y + g, x:x + g] = True
     assert np.array_equal(tokens, canvas)

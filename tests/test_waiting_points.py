@@ -41,11 +41,12 @@ def test_only_the_listed_connection_waits_at_the_stop_line(tmp_path):
 
 
 def test_left_turner_no_longer_waits_in_the_oncoming_lane(tmp_path):
-    """Learned mixed map, density 30, seed 2: a left turn off an arterial that bends through
-    a junction waited 0.5 m from the oncoming inner lane's centre and was hit there (one
-    junction collision in the quality sweep); it now waits at its stop line."""
+    """Learned mixed map, density 30 (seed 2 of the weights before v5): a left turn off an
+    arterial that bends through a junction waited 0.5 m from the oncoming inner lane's centre
+    and was hit there (one junction collision in the quality sweep); such turns now wait at
+    their stop line. Seed 1 of the shipped weights has such turns (as most learned maps)."""
     out = tmp_path / "s"
-    assert main(["make-scenario", "--density", "30", "--vehicles", "500", "--seed", "2",
+    assert main(["make-scenario", "--density", "30", "--vehicles", "500", "--seed", "1",
                  "--style", "mixed", "--out", str(out)]) == 0
     report = json.loads((out / "report.json").read_text())
     assert report["simulation"]["collisions"] == 0
@@ -72,7 +73,7 @@ def test_trips_drawn_from_the_first_net_give_the_final_nets_demand(tmp_path, mon
         return draw_first_trips(folder, net_file, **options)
 
     monkeypatch.setattr(pipeline, "draw_first_trips", copying)
-    spec = ScenarioSpec(density=30, vehicles=500, seed=2, style="mixed")
+    spec = ScenarioSpec(density=30, vehicles=500, seed=1, style="mixed")
     out = tmp_path / "s"
     out.mkdir()
     build_scenario_files(spec, out, {}, lambda msg: None)

@@ -26,6 +26,9 @@ from .inference import DrawnUniform, FieldDecoder, MaskGITSampler, TorchUniform
 from .settings import MaskGITConfig, VQVAEConfig
 
 STEPS = 8
+#: Classifier-free guidance scale of a transformer trained with condition dropout. A
+#: transformer with the guidance distilled into it (``training.distil_guidance``, the shipped
+#: one) samples without: one trunk pass per decoding step instead of two.
 GUIDANCE = 1.0
 #: Logit temperature. At 1.0, confidence-based decoding committed the confident "no road"
 #: tokens first and some asks (mixed style at density 60) decoded to an almost empty tile (road
@@ -60,6 +63,10 @@ class Generator:
                    np.array(meta["condition_std"], dtype=np.float32),
                    float(meta["dataset"]["settings"]["tile_m"]), meta,
                    float(vq_meta["heldout"].get("threshold", 0.5)))
+
+    @property
+    def guidance(self) -> float:
+        return 0.0 if self.meta.get("guidance_distilled") else GUIDANCE
 
     @property
     def grid(self) -> int:
@@ -124,15 +131,17 @@ def _raster_windows(shape: tuple[int, int], g: int, steps: int) -> list[_Window]
 
 
 def sample_tokens(gen: Generator, c: np.ndarray, shape: tuple[int, int], seed: int, *,
-                  steps: int = STEPS, guidance: float = GUIDANCE,
+                  steps: int = STEPS, guidance: float | None = None,
                   temperature: float = TEMPERATURE, progress=None) -> np.ndarray:
-    """A token canvas (ny, nx, G) of at least one window: the tokens raster order samples.
+    """A token canvas (ny, nx, G) of at least one window: the tokens raster order samples
+    (``guidance`` None: the generator's own, :attr:`Generator.guidance`).
 
     A window's tokens depend only on its context and its random numbers, so each window is
     sampled as soon as the windows it overlaps are done, given the stretch of the random
     stream it would have drawn in raster order (its share is known beforehand: how many
     numbers a window draws depends only on how many tokens it fills and its steps)."""
     g, G = gen.grid, gen.sampler.cfg.groups
+    guidance = gen.guidance if guidance is None else guidance
     ny, nx = max(shape[0], g), max(shape[1], g)
     canvas = np.zeros((ny, nx, G), dtype=np.int64)
     modulations = gen.sampler.condition(gen.standardise(c), guidance)
