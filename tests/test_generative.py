@@ -270,6 +270,26 @@ def _group_norm_silu_group_by_group(x, weight, bias, groups):
     return out
 
 
+def test_inverse_cdf_draws_are_numpys_cumulative_sum_compare_and_count():
+    """The compiled draw picks the category numpy's float64 cumulative sum, cast to float32,
+    compared with u times the total and counted picks: also for uniform numbers at 0 and just
+    below 1, peaked rows, and rows whose tail rounds to the total."""
+    rng = np.random.default_rng(3)
+    logits = rng.normal(0, 4, (400, 512)).astype(np.float32)
+    logits[:50, 7] += 40  # nearly one-hot rows
+    logp = logits - np.log(np.exp(logits - logits.max(-1, keepdims=True)).sum(-1, keepdims=True)) \
+        - logits.max(-1, keepdims=True)
+    probs = np.exp(logp)
+    u = rng.random(400).astype(np.float32)
+    u[:20], u[20:40] = 0.0, np.float32(1 - 2**-24)
+    cdf = np.cumsum(probs, axis=-1, dtype=np.float64).astype(np.float32)
+    want = np.minimum((cdf <= u[:, None] * cdf[:, -1:]).sum(-1), 511)
+    got = np.empty(400, np.int64)
+    inference._inverse_cdf(probs, u, got)
+    assert np.array_equal(got, want)
+    assert (got[:20] == 0).all() and (got[20:50] == 7).all()  # u = 0 takes the first category
+
+
 def test_group_norm_statistics_of_all_groups_in_one_pass_are_those_group_by_group():
     reference = numba.njit(_group_norm_silu_group_by_group)
     rng = np.random.default_rng(2)

@@ -20,7 +20,7 @@ from functools import partial
 import numpy as np
 from scipy.special import expit
 
-from ..compiled import F4_1D, F4_2D, F4_3D, I8, compiled
+from ..compiled import F4_1D, F4_2D, F4_3D, I8, I8_1D, compiled
 from .settings import MaskGITConfig, VQVAEConfig
 
 F32 = np.float32
@@ -286,12 +286,34 @@ class MaskGITSampler:
                 free = self.group_logits(h_free, g, choice[:, :g])
                 logits = logits + F32(guidance) * (logits - free)
             logp = _log_softmax(logits / F32(max(temperature, 1e-4)))
-            cdf = np.cumsum(np.exp(logp), axis=-1, dtype=np.float64).astype(F32)
-            u = rng.rand(m, 1) * cdf[:, -1:]
-            drawn = np.minimum((cdf <= u).sum(-1), logp.shape[-1] - 1)
+            drawn = np.empty(m, np.int64)
+            _inverse_cdf(np.exp(logp), rng.rand(m), drawn)
             choice[:, g] = drawn
             conf += logp[np.arange(m), drawn]
         return choice, conf
+
+
+@compiled((F4_2D, F4_1D, I8_1D), nogil=True)
+def _inverse_cdf(probs, uniform, out):  # pragma: no cover - compiled
+    """One categorical draw per row of ``probs`` (m, K) by inverse CDF, into ``out``: the
+    number of float32 partial sums (accumulated in float64) at or below ``uniform`` times
+    the row's total, at most K - 1. The same numbers as numpy's cumulative sum, compare and
+    count (tests compare), without their three (m, K) temporaries: they were a sixth of the
+    token sampling's time."""
+    m, K = probs.shape
+    for i in range(m):
+        total = 0.0
+        for k in range(K):
+            total += probs[i, k]
+        target = uniform[i] * np.float32(total)
+        acc = 0.0
+        count = 0
+        for k in range(K):
+            acc += probs[i, k]
+            if np.float32(acc) > target:  # the partial sums only grow
+                break
+            count += 1
+        out[i] = min(count, K - 1)
 
 
 class FieldDecoder:
