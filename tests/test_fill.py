@@ -98,3 +98,40 @@ def test_pieces_of_a_line_are_its_substrings():
         for piece, (a, b) in zip(pieces, [(0, s), (s, line.length)], strict=True):
             expected = np.asarray(shapely.ops.substring(line, a, b).coords)
             assert piece.shape == expected.shape and piece.tobytes() == expected.tobytes()
+
+
+def test_fill_in_two_halves_is_planar_and_the_same_with_or_without_a_child(monkeypatch):
+    """A map filled in a west and an east half (here from 100 road nodes on, as a 10 km map
+    is) reaches its density, has no crossing without a junction, and is the same graph
+    whether the east half ran in a forked child or in this process on a copy."""
+    import hashlib
+
+    from roadweaver_sumo import forked, metrics
+    from roadweaver_sumo.expand import expand_skeleton, fill
+    from roadweaver_sumo.skeleton import make_skeleton
+    from roadweaver_sumo.spec import ScenarioSpec
+
+    def digest(G):
+        h = hashlib.sha256()
+        for u, v, d in sorted(G.edges(data=True), key=lambda t: t[:2]):
+            h.update(f"{u} {v} {d['start']} {d['road_class']}".encode() + d["coords"].tobytes())
+        return h.hexdigest()
+
+    spec = ScenarioSpec(density=40, vehicles=10, width=3000, height=2500, seed=4,
+                        skeleton="procedural")
+    skeleton = make_skeleton(spec)
+    halves, original = [], fill._halves
+
+    def recording(G, blocks):
+        halves.append(original(G, blocks))
+        return halves[-1]
+
+    monkeypatch.setattr(fill, "HALVES_MIN_NODES", 100)
+    monkeypatch.setattr(fill, "_halves", recording)
+    G = expand_skeleton(spec, skeleton)
+    assert halves and all(west and east and seam for west, east, seam in halves)
+    target = spec.target_road_nodes
+    assert abs(metrics.road_node_count(G) - target) <= 0.025 * target
+    assert metrics.crossings_without_junction(G) == 0
+    monkeypatch.setattr(forked, "can_fork", lambda: False)
+    assert digest(expand_skeleton(spec, skeleton)) == digest(G)
