@@ -101,9 +101,10 @@ def test_pieces_of_a_line_are_its_substrings():
 
 
 def test_fill_in_two_halves_is_planar_and_the_same_with_or_without_a_child(monkeypatch):
-    """A map filled in a west and an east half (here from 100 road nodes on, as a 10 km map
-    is) reaches its density, has no crossing without a junction, and is the same graph
-    whether the east half ran in a forked child or in this process on a copy."""
+    """A map filled in a west and an east half and then along the seam (here from 100 road
+    nodes on, as a 10 km map is) reaches its density, has no crossing without a junction,
+    and is the same graph whether the east half ran in a forked child or in this process on
+    a copy."""
     import hashlib
 
     from roadweaver_sumo import forked, metrics
@@ -129,7 +130,8 @@ def test_fill_in_two_halves_is_planar_and_the_same_with_or_without_a_child(monke
     monkeypatch.setattr(fill, "HALVES_MIN_NODES", 100)
     monkeypatch.setattr(fill, "_halves", recording)
     G = expand_skeleton(spec, skeleton)
-    assert halves and all(west and east and seam for west, east, seam in halves)
+    assert halves and all(west and east and seam_blocks and seam_roads
+                          for west, east, seam_blocks, seam_roads in halves)
     target = spec.target_road_nodes
     assert abs(metrics.road_node_count(G) - target) <= 0.025 * target
     assert metrics.crossings_without_junction(G) == 0

@@ -18,6 +18,7 @@ import itertools
 import math
 import os
 from functools import partial
+from operator import itemgetter
 
 import networkx as nx
 import numpy as np
@@ -56,56 +57,67 @@ def fill_to_density(
     """Split blocks until ``road_node_count(G) >= target`` or no block can be split, counting
     the road nodes as the clean-up will leave them (``stub``: see :func:`counted_change`).
 
-    A fill of at least HALVES_MIN_NODES road nodes splits the blocks of the map's west and
-    east halves (by area) side by side, the east half in a forked child: each half gets its
-    share of the nodes by area and a random stream of its own, and no chord may end on a road
-    between a block of each half (those roads stay whole, so the two halves' changes never
-    meet). Where no child can be forked the east half is filled on a copy of the graph, with
-    the same result."""
+    A fill of at least HALVES_MIN_NODES road nodes uses both cores once no block is larger
+    than HALVES_BLOCK_AREA times the area per road node asked for (until then it splits the
+    largest blocks here). The blocks along the line that then halves the blocks' area (those
+    on a road between a block west of it and one east of it) are the seam; the other blocks
+    west and east of it are split side by side, the east ones in a forked child, each side
+    with its share of the nodes by area and a random stream of its own. No chord there may
+    end on a seam road, so the two sides' changes never meet. Then this process splits the
+    seam's blocks with the rest. Where no child can be forked the east side is filled on a
+    copy of the graph, with the same result."""
     blocks = sorted(faces(G), key=lambda f: f.bounds)
     count = road_node_count(G)
     need = target - count
     if need < HALVES_MIN_NODES:
         _split_blocks(G, blocks, need, field, rng, min_edge, min_angle, stub)
         return
-    west, east, seam = _halves(G, blocks)
-    west_area = sum(f.area for f in west)
-    halves_need = round(need * (1.0 - SEAM_SHARE))
-    west_need = round(halves_need * west_area / (west_area + sum(f.area for f in east)))
+    largest = HALVES_BLOCK_AREA * G.graph["width"] * G.graph["height"] / target
+    added, blocks = _split_blocks(G, blocks, need, field, rng, min_edge, min_angle, stub,
+                                  largest=largest)
+    need -= added
+    if need <= 0 or not blocks:
+        return
+    west, east, seam_blocks, seam_roads = _halves(G, blocks)
+    area = sum(f.area for f in blocks)
+    west_need = round(need * sum(f.area for f in west) / area)
+    east_need = round(need * sum(f.area for f in east) / area)
     west_rng, east_rng = rng.spawn(2)
     parent = os.getpid()
 
     def east_half() -> tuple:
         H = G if os.getpid() != parent else G.copy()  # a forked child's graph is its own
         top, before = max(H.nodes), {(u, v): id(d) for u, v, d in H.edges(data=True)}
-        added = _split_blocks(H, east, halves_need - west_need, field, east_rng, min_edge,
-                              min_angle, stub, seam)
+        added, _ = _split_blocks(H, east, east_need, field, east_rng, min_edge, min_angle,
+                                 stub, seam_roads)
         return added, _changes(H, top, before)
 
-    west_added, (east_added, changes) = beside(
+    (west_added, _), (east_added, changes) = beside(
         east_half, lambda: _split_blocks(G, west, west_need, field, west_rng, min_edge,
-                                         min_angle, stub, seam), name="filling the east half")
+                                         min_angle, stub, seam_roads),
+        name="filling the east half")
     _apply_changes(G, *changes)
-    # The rest in this process, over all blocks, largest first: the blocks along the seam,
-    # which neither half could split across, are among the largest left.
-    _split_blocks(G, sorted(faces(G), key=lambda f: f.bounds), need - west_added - east_added,
-                  field, rng, min_edge, min_angle, stub)
+    # A block keeps its shape when a neighbour's chord ends on its edge (a node on it).
+    _split_blocks(G, seam_blocks, need - west_added - east_added, field, rng, min_edge,
+                  min_angle, stub)
 
 
 #: The fill is split over two processes from this many road nodes on (a 10 km map at density
-#: 30 adds 1,000-1,300); fewer are not worth the fork and the roads along the seam that may
-#: not be split (2-5 km maps fill as before).
+#: 30 adds 1,000-1,300); fewer are not worth the fork (most maps up to 5 km fill as before).
 HALVES_MIN_NODES = 800
-#: The share of the nodes left to a last fill over the whole map (see fill_to_density).
-SEAM_SHARE = 0.1
+#: ... and from blocks of at most this many times the area per road node on: a learned map's
+#: skeleton leaves a few blocks of several km², and blocks that large along the seam would
+#: leave most of the map to the seam's fill, in one process.
+HALVES_BLOCK_AREA = 32.0
 
 
 def _split_blocks(G: nx.Graph, blocks: list[Polygon], need: int, field: TensorField,
                   rng: np.random.Generator, min_edge: float, min_angle: float, stub: float,
-                  frozen: frozenset = frozenset()) -> int:
+                  frozen: frozenset = frozenset(), largest: float = 0.0) -> tuple[int, list]:
     """Split ``blocks`` (largest first, and the blocks their splits make) until the road-node
-    count has grown by ``need``; chords touching a road of ``frozen`` are refused. Returns
-    how much it grew (as the clean-up will leave it)."""
+    count has grown by ``need`` or no block is larger than ``largest``; chords touching a
+    road of ``frozen`` are refused. Returns how much it grew (as the clean-up will leave it)
+    and the blocks left (in their first order)."""
     heap = [(-f.area, k, f) for k, f in enumerate(blocks)]
     heapq.heapify(heap)
     counter = len(heap)
@@ -113,7 +125,7 @@ def _split_blocks(G: nx.Graph, blocks: list[Polygon], need: int, field: TensorFi
     index.frozen = frozen
     nodes = _NodePoints(G)
     count = 0
-    while heap and count < need:
+    while heap and count < need and -heap[0][0] > largest:
         _, _, face = heapq.heappop(heap)
         ends = None
         makers = [partial(split_chord, roads=index), partial(straight_chord, roads=index),
@@ -136,12 +148,12 @@ def _split_blocks(G: nx.Graph, blocks: list[Polygon], need: int, field: TensorFi
         for part in _split_face(face, chord, index):
             heapq.heappush(heap, (-part.area, counter, part))
             counter += 1
-    return count
+    return count, [face for _, _, face in sorted(heap, key=itemgetter(1))]
 
 
-def _halves(G: nx.Graph, blocks: list[Polygon]) -> tuple[list, list, frozenset]:
-    """The blocks west and east of the line that halves their area (by centroid), and the
-    roads between a block of each: those whose midpoint is on both halves' blocks."""
+def _halves(G: nx.Graph, blocks: list[Polygon]) -> tuple[list, list, list, frozenset]:
+    """The blocks west and east of the line that halves the blocks' area (by centroid), the
+    seam's blocks, and the seam's roads: those whose midpoint is on a block of each side."""
     x = shapely.get_x(shapely.centroid(blocks))
     order = np.argsort(x, kind="stable")
     area = np.cumsum(shapely.area(blocks)[order])
@@ -152,13 +164,17 @@ def _halves(G: nx.Graph, blocks: list[Polygon]) -> tuple[list, list, frozenset]:
     lines = shapely.linestrings(np.concatenate(coords),
                                 indices=np.repeat(np.arange(len(coords)), [len(c) for c in coords]))
     middles = shapely.line_interpolate_point(lines, 0.5, normalized=True)
-    pairs = shapely.STRtree(blocks).query(middles, predicate="dwithin", distance=1e-6)
+    pairs = shapely.STRtree(blocks).query(middles, predicate="dwithin", distance=1e-6).T.tolist()
     sides = [set() for _ in edges]
-    for e, b in pairs.T.tolist():
+    for e, b in pairs:
         sides[e].add(bool(in_west[b]))
-    seam = frozenset(edge_key(*edges[e]) for e, s in enumerate(sides) if len(s) == 2)
-    return ([f for f, w in zip(blocks, in_west, strict=True) if w],
-            [f for f, w in zip(blocks, in_west, strict=True) if not w], seam)
+    on_seam = [len(s) == 2 for s in sides]
+    seam = {b for e, b in pairs if on_seam[e]}
+    group = [[], [], []]  # west, east, seam
+    for b, block in enumerate(blocks):
+        group[2 if b in seam else 0 if in_west[b] else 1].append(block)
+    roads = frozenset(edge_key(*edges[e]) for e, yes in enumerate(on_seam) if yes)
+    return group[0], group[1], group[2], roads
 
 
 def _changes(H: nx.Graph, top: int, before: dict) -> tuple[list, dict, list]:
