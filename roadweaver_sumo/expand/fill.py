@@ -87,7 +87,7 @@ def fill_to_density(
 
     def east_half() -> tuple:
         H = G if os.getpid() != parent else G.copy()  # a forked child's graph is its own
-        top, before = max(H.nodes), {(u, v): id(d) for u, v, d in H.edges(data=True)}
+        top, before = max(H.nodes), {(u, v): d for u, v, d in H.edges(data=True)}
         added, _ = _split_blocks(H, east, east_need, field, east_rng, min_edge, min_angle,
                                  stub, seam_roads)
         return added, _changes(H, top, before)
@@ -179,11 +179,13 @@ def _halves(G: nx.Graph, blocks: list[Polygon]) -> tuple[list, list, list, froze
 
 def _changes(H: nx.Graph, top: int, before: dict) -> tuple[list, dict, list]:
     """What a fill changed in ``H``: the roads it removed (split), the nodes it added (ids
-    above ``top``) and the roads it added, from the edge data objects ``before`` it."""
+    above ``top``) and the roads it added, from the edge data objects ``before`` it (held,
+    not their ids: a road removed and made again between the same two nodes could get a
+    freed object's id)."""
     removed = [e for e in before if not H.has_edge(*e)]
     added_nodes = {n: H.nodes[n]["xy"] for n in H.nodes if n > top}
     added = [(u, v, d) for u, v, d in H.edges(data=True)
-             if before.get((u, v), before.get((v, u))) != id(d)]
+             if before.get((u, v), before.get((v, u))) is not d]
     return removed, added_nodes, added
 
 
