@@ -96,6 +96,33 @@ def test_clean_up_never_joins_a_sharp_v_into_a_hairpin(other_arm):
     assert len(tip) == 1 and G.degree(tip[0]) == 1  # one arm of the V is left, a cul-de-sac
 
 
+def test_noding_joins_a_road_that_stops_a_hair_off_another_as_snap_rounding_does():
+    """The graph is noded by plain noding of the lines rounded to the 1 cm grid, not by
+    snap-rounding (a fifth of the time). A road whose end was put on another road's nearest
+    point (a reconnection link) is rarely exactly on it, and rounded to the grid it is off by
+    a few millimetres: it must still meet that road in a T-junction, as GEOS's snap-rounding
+    (``union_all(grid_size=0.01)``) makes it. One that stops within a grid step of another
+    road's vertex joins it there (snap-rounding keeps ends a grid step apart)."""
+    from roadweaver_sumo.expand import planar
+
+    diagonal = np.array([[0.0, 0.0], [300.0, 100.01], [300.0, 400.0]])  # y 33.3367 at x 100
+    onto_segment = np.array([[100.0, 250.0], [100.0, 33.33667]])  # 33.34 on the grid
+    onto_vertex = np.array([[500.0, 100.004], [300.006, 100.014]])  # 300.01, 100.01
+    roads = [(diagonal, "collector"), (onto_segment, "local"), (onto_vertex, "local")]
+    lines = planar._linestrings([c for c, _ in roads])
+    rounded = shapely.linestrings(np.round(shapely.get_coordinates(lines), 2),
+                                  indices=shapely.get_coordinates(lines, return_index=True)[1])
+    assert 0 < shapely.distance(shapely.points([100.0, 33.34]), lines[0]) < 0.005
+    assert planar._loose_end(shapely.union_all(rounded))  # plain noding alone misses both
+    assert not planar._loose_end(shapely.union_all(planar._ends_onto_roads(rounded)))
+    snapped = shapely.get_parts(shapely.union_all(lines[:2], grid_size=planar.GRID))
+    assert len(snapped) == len(shapely.get_parts(planar._noded(lines[:2]))) == 3
+    G = build_planar_graph(roads, 1000, 1000)
+    assert G.number_of_edges() == 5  # the diagonal cut at the T and at its vertex
+    tees = sorted(tuple(G.nodes[n]["xy"]) for n in G if G.degree(n) == 3)
+    assert tees == [(100.0, 33.34), (300.0, 100.01)]
+
+
 def test_clean_up_joins_a_wide_bend_into_one_road():
     """The hairpin rule leaves ordinary bends alone: arms meeting at 100° become one road."""
     from roadweaver_sumo.expand.planar import clean
