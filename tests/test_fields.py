@@ -151,6 +151,24 @@ def test_a_star_links_a_dangling_end_to_the_nearest_road():
     assert math.isclose(end[1], 260.0, abs_tol=1e-6)  # ends exactly on the other road
 
 
+def test_components_joined_by_pending_links_get_no_second_link():
+    """Dead-end links and component links are noded into the graph together: a component
+    whose dead end already has a pending link onto the main component needs no link of its
+    own, one without gets one (onto a main road or a pending link of the main one)."""
+    from roadweaver_sumo.expand.reconnect import link_components
+    from roadweaver_sumo.skeleton.model import perimeter
+
+    square = np.array([[150.0, 150.0], [250.0, 150.0], [250.0, 250.0], [150.0, 250.0],
+                       [150.0, 150.0]])
+    tail = np.array([[250.0, 200.0], [300.0, 200.0]])  # its dead end at x 300
+    roads = [(perimeter(400, 400), "collector"), (square, "local"), (tail, "local")]
+    G = build_planar_graph(roads, 400, 400)
+    cost = np.ones((40, 40))
+    pending = [np.array([[300.0, 200.0], [385.0, 200.0]])]  # onto the ring's east side
+    assert link_components(G, cost, 10.0, radius=200.0, pending=pending) == []
+    assert len(link_components(G, cost, 10.0, radius=200.0)) == 1
+
+
 @pytest.mark.parametrize("levels", [None, 3, 1])
 def test_compiled_search_takes_skimages_path_even_among_equal_costs(levels):
     """The dead-end search replicates MCP_Geometric step for step: its costs, neighbour order

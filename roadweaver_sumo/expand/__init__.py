@@ -36,9 +36,7 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     clean(G, MIN_EDGE, MIN_ANGLE, stub=MIN_EDGE, margin=BORDER_MARGIN, keep_largest=False)
     cost = skeleton.cost_map()
     links = reconnect_dangles(G, cost, skeleton.res, radius=2 * stub, margin=BORDER_MARGIN)
-    if links:
-        G = _renode(G, [(c, "collector") for c in links])
-    links = link_components(G, cost, skeleton.res, radius=4 * stub)
+    links += link_components(G, cost, skeleton.res, radius=4 * stub, pending=links)
     if links:
         G = _renode(G, [(c, "collector") for c in links])
     clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN)

@@ -72,18 +72,28 @@ def reconnect_dangles(
     return [path for path in paths if path is not None]
 
 
-def link_components(G: nx.Graph, cost: np.ndarray, res: float, radius: float) -> list[np.ndarray]:
+def link_components(G: nx.Graph, cost: np.ndarray, res: float, radius: float,
+                    pending: list[np.ndarray] = ()) -> list[np.ndarray]:
     """Polylines linking each component that is not the main one (the perimeter ring's) to
     it: an A* path from the component's junction nearest to a main road, within ``radius``.
     A component with no dead end (a loop, a cluster whose ends all found each other) gets no
-    link from :func:`reconnect_dangles` and would otherwise be dropped whole."""
-    comps = components_main_first(G)
+    link from :func:`reconnect_dangles` and would otherwise be dropped whole.
+
+    ``pending`` are the links :func:`reconnect_dangles` made, not yet in ``G``: each joins its
+    dead end's component to that of the road it ends on (and the main component's links are
+    targets too), so the graph is noded once with both sets of links instead of twice. (Where
+    a pending link crosses a road without ending on it, the two components count as apart:
+    at worst one more link.)"""
+    roads = sorted_edge_list(G)
+    comps, pending_comp = _joined_components(G, roads, pending)
     if len(comps) <= 1:
         return []
-    main_roads = [road for road in sorted_edge_list(G) if road[0] in comps[0]]
-    lines = road_lines(main_roads)
+    main_roads = [road for road in roads if road[0] in comps[0]]
+    main_links = [path for path, c in zip(pending, pending_comp, strict=True) if c == 0]
+    lines = road_lines(main_roads) + [shapely.LineString(path) for path in main_links]
     tree = shapely.STRtree(lines)
-    targets = rasterise_polylines([data["coords"] for _, _, data in main_roads], cost.shape, res)
+    targets = rasterise_polylines([data["coords"] for _, _, data in main_roads] + main_links,
+                                  cost.shape, res)
     links = []
     for comp in comps[1:]:
         nodes = sorted(comp)
@@ -100,6 +110,39 @@ def link_components(G: nx.Graph, cost: np.ndarray, res: float, radius: float) ->
         if path is not None and np.hypot(*(path[-1] - path[0])) > 1.0:
             links.append(path)
     return links
+
+
+def _joined_components(G: nx.Graph, roads: list, pending: list) -> tuple[list[set], list[int]]:
+    """The node sets of ``G``'s components as the ``pending`` links join them (main first, as
+    :func:`components_main_first` orders components), and which of them each link is in.
+    A link starts on its dead end's node and ends on (within a hair of) a road."""
+    comps = list(nx.connected_components(G))
+    group = list(range(len(comps)))
+
+    def find(c: int) -> int:
+        while group[c] != c:
+            group[c] = group[group[c]]
+            c = group[c]
+        return c
+
+    comp_of = {n: c for c, comp in enumerate(comps) for n in comp}
+    starts = []
+    if len(pending):
+        node_at = {tuple(G.nodes[n]["xy"]): n for n in G}
+        tree = shapely.STRtree(road_lines(roads))
+        _, hit = tree.query_nearest(shapely.points([path[-1] for path in pending]),
+                                    all_matches=False)
+        for path, k in zip(pending, hit.tolist(), strict=True):
+            a = comp_of[node_at[(float(path[0][0]), float(path[0][1]))]]
+            group[find(a)] = find(comp_of[roads[k][0]])
+            starts.append(a)
+    joined: dict[int, set] = {}
+    for c, comp in enumerate(comps):
+        joined.setdefault(find(c), set()).update(comp)
+    ordered = components_main_first(G, list(joined.values()))
+    rank = {min(comp): r for r, comp in enumerate(ordered)}
+    root_rank = {root: rank[min(comp)] for root, comp in joined.items()}
+    return ordered, [root_rank[find(a)] for a in starts]
 
 
 def _cheapest_link(p, cost, targets, res, radius, exclude=None):
