@@ -34,7 +34,8 @@ class EdgeIndex:
                                             strict=True):
                 self._insert(edge_key(u, v), line, bounds)
         self._top = max(G.nodes, default=-1)
-        self.frozen: frozenset = frozenset()  # roads the density fill must not split
+        #: the road (its key when the index was made) each piece of a split road was cut from
+        self.origin: dict[tuple, tuple] = {}
 
     def new_node_id(self) -> int:
         """``max(G.nodes) + 1`` without scanning every node (a scan per split made the density

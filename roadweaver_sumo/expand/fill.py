@@ -16,7 +16,6 @@ from __future__ import annotations
 import heapq
 import itertools
 import math
-import os
 from functools import partial
 from operator import itemgetter
 
@@ -26,7 +25,7 @@ import shapely
 from scipy.spatial import cKDTree
 from shapely.geometry import LineString, Point, Polygon
 
-from ..forked import beside
+from .. import forked
 from ..metrics import road_node_count
 from ..roadgraph import add_road, edge_coords, edge_length
 from ..streamlines import choose_axis, follow_field
@@ -57,72 +56,72 @@ def fill_to_density(
     """Split blocks until ``road_node_count(G) >= target`` or no block can be split, counting
     the road nodes as the clean-up will leave them (``stub``: see :func:`counted_change`).
 
-    A fill of at least HALVES_MIN_NODES road nodes uses both cores once no block is larger
-    than HALVES_BLOCK_AREA times the area per road node asked for (until then it splits the
-    largest blocks here). The blocks along the line that then halves the blocks' area (those
-    on a road between a block west of it and one east of it) are the seam; the other blocks
-    west and east of it are split side by side, the east ones in a forked child, each side
-    with its share of the nodes by area and a random stream of its own. No chord there may
-    end on a seam road, so the two sides' changes never meet. Then this process splits the
-    seam's blocks with the rest. Where no child can be forked the east side is filled on a
-    copy of the graph, with the same result."""
+    A fill of at least HALVES_MIN_NODES road nodes uses both cores. The blocks are put in two
+    groups of about the same area, on either side of a line across the map (by centroid; a
+    block too large for the two to balance is split first, here). Each group is filled by
+    its own process, with its share of the nodes by area and a random stream of its own, the
+    second in a forked child; a road between the two groups may get junctions from both, and
+    :func:`_merge_fill` puts the child's junctions and roads into this process's graph. What
+    is still missing then (a group that ran out of blocks) is filled here. Where no child can
+    be forked the second group is filled on a copy of the graph, with the same result."""
     blocks = sorted(faces(G), key=lambda f: f.bounds)
-    count = road_node_count(G)
-    need = target - count
+    need = target - road_node_count(G)
     if need < HALVES_MIN_NODES:
         _split_blocks(G, blocks, need, field, rng, min_edge, min_angle, stub)
         return
-    largest = HALVES_BLOCK_AREA * G.graph["width"] * G.graph["height"] / target
+    area = sum(f.area for f in blocks)
     added, blocks = _split_blocks(G, blocks, need, field, rng, min_edge, min_angle, stub,
-                                  largest=largest)
+                                  largest=BALANCE_SHARE * area)
     need -= added
     if need <= 0 or not blocks:
         return
-    west, east, seam_blocks, seam_roads = _halves(G, blocks)
-    area = sum(f.area for f in blocks)
-    west_need = round(need * sum(f.area for f in west) / area)
-    east_need = round(need * sum(f.area for f in east) / area)
-    west_rng, east_rng = rng.spawn(2)
-    parent = os.getpid()
+    first, second = _two_groups(blocks)
+    first_need = round(need * sum(f.area for f in first) / area)
+    first_rng, second_rng = rng.spawn(2)
+    top = max(G.nodes)
+    # A forked child's graph is its own, as it was when forked; else a copy made now.
+    H = G if forked.can_fork() else G.copy()
 
-    def east_half() -> tuple:
-        H = G if os.getpid() != parent else G.copy()  # a forked child's graph is its own
-        top, before = max(H.nodes), {(u, v): d for u, v, d in H.edges(data=True)}
-        added, _ = _split_blocks(H, east, east_need, field, east_rng, min_edge, min_angle,
-                                 stub, seam_roads)
-        return added, _changes(H, top, before)
+    def second_group() -> tuple:
+        before = {edge_key(u, v): d for u, v, d in H.edges(data=True)}
+        index = EdgeIndex(H)
+        added, left = _split_blocks(H, second, need - first_need, field, second_rng,
+                                    min_edge, min_angle, stub, index=index)
+        return added, left, _fill_changes(H, top, before, index)
 
-    (west_added, _), (east_added, changes) = beside(
-        east_half, lambda: _split_blocks(G, west, west_need, field, west_rng, min_edge,
-                                         min_angle, stub, seam_roads),
-        name="filling the east half")
-    _apply_changes(G, *changes)
-    # A block keeps its shape when a neighbour's chord ends on its edge (a node on it).
-    _split_blocks(G, seam_blocks, need - west_added - east_added, field, rng, min_edge,
-                  min_angle, stub)
+    index = EdgeIndex(G)
+    (first_added, first_left), (second_added, second_left, changes) = forked.beside(
+        second_group, lambda: _split_blocks(G, first, first_need, field, first_rng, min_edge,
+                                            min_angle, stub, index=index),
+        name="filling the second group of blocks")
+    _merge_fill(G, index, min_edge, *changes)
+    rest = need - first_added - second_added
+    if rest > 0:
+        _split_blocks(G, first_left + second_left, rest, field, rng, min_edge, min_angle, stub)
 
 
 #: The fill is split over two processes from this many road nodes on (a 10 km map at density
 #: 30 adds 1,000-1,300); fewer are not worth the fork (most maps up to 5 km fill as before).
 HALVES_MIN_NODES = 800
-#: ... and from blocks of at most this many times the area per road node on: a learned map's
-#: skeleton leaves a few blocks of several km², and blocks that large along the seam would
-#: leave most of the map to the seam's fill, in one process.
-HALVES_BLOCK_AREA = 32.0
+#: Blocks larger than this share of the map's block area are split before the two groups are
+#: made: a learned skeleton can leave one block of 40 % of the map, and no line would then
+#: give the two processes equal areas.
+BALANCE_SHARE = 0.25
 
 
 def _split_blocks(G: nx.Graph, blocks: list[Polygon], need: int, field: TensorField,
                   rng: np.random.Generator, min_edge: float, min_angle: float, stub: float,
-                  frozen: frozenset = frozenset(), largest: float = 0.0) -> tuple[int, list]:
+                  largest: float = 0.0, index: EdgeIndex | None = None) -> tuple[int, list]:
     """Split ``blocks`` (largest first, and the blocks their splits make) until the road-node
-    count has grown by ``need`` or no block is larger than ``largest``; chords touching a
-    road of ``frozen`` are refused. Returns how much it grew (as the clean-up will leave it)
-    and the blocks left (in their first order)."""
+    count has grown by ``need`` or no block is larger than ``largest``. Returns how much it
+    grew (as the clean-up will leave it) and the blocks left (in their first order).
+    ``index``: the graph's road index, which then also records which road each piece of a
+    split road was cut from."""
     heap = [(-f.area, k, f) for k, f in enumerate(blocks)]
     heapq.heapify(heap)
     counter = len(heap)
-    index = EdgeIndex(G)
-    index.frozen = frozen
+    if index is None:
+        index = EdgeIndex(G)
     nodes = _NodePoints(G)
     count = 0
     while heap and count < need and -heap[0][0] > largest:
@@ -151,54 +150,75 @@ def _split_blocks(G: nx.Graph, blocks: list[Polygon], need: int, field: TensorFi
     return count, [face for _, _, face in sorted(heap, key=itemgetter(1))]
 
 
-def _halves(G: nx.Graph, blocks: list[Polygon]) -> tuple[list, list, list, frozenset]:
-    """The blocks west and east of the line that halves the blocks' area (by centroid), the
-    seam's blocks, and the seam's roads: those whose midpoint is on a block of each side."""
-    x = shapely.get_x(shapely.centroid(blocks))
-    order = np.argsort(x, kind="stable")
-    area = np.cumsum(shapely.area(blocks)[order])
-    in_west = np.zeros(len(blocks), bool)
-    in_west[order[:int(np.searchsorted(area, area[-1] / 2)) + 1]] = True
-    edges = list(G.edges)
-    coords = [G.edges[e]["coords"] for e in edges]
-    lines = shapely.linestrings(np.concatenate(coords),
-                                indices=np.repeat(np.arange(len(coords)), [len(c) for c in coords]))
-    middles = shapely.line_interpolate_point(lines, 0.5, normalized=True)
-    pairs = shapely.STRtree(blocks).query(middles, predicate="dwithin", distance=1e-6).T.tolist()
-    sides = [set() for _ in edges]
-    for e, b in pairs:
-        sides[e].add(bool(in_west[b]))
-    on_seam = [len(s) == 2 for s in sides]
-    seam = {b for e, b in pairs if on_seam[e]}
-    group = [[], [], []]  # west, east, seam
-    for b, block in enumerate(blocks):
-        group[2 if b in seam else 0 if in_west[b] else 1].append(block)
-    roads = frozenset(edge_key(*edges[e]) for e, yes in enumerate(on_seam) if yes)
-    return group[0], group[1], group[2], roads
+def _two_groups(blocks: list[Polygon]) -> tuple[list, list]:
+    """The blocks on either side of the line across the map (west-east or south-north, by
+    centroid) that halves their area most nearly."""
+    area = shapely.area(blocks)
+    centres = shapely.centroid(blocks)
+    best = None
+    for position in (shapely.get_x(centres), shapely.get_y(centres)):
+        order = np.argsort(position, kind="stable")
+        below = np.cumsum(area[order])
+        k = int(np.argmin(np.abs(below - below[-1] / 2)))
+        if best is None or abs(below[k] - below[-1] / 2) < best[0]:
+            best = (abs(below[k] - below[-1] / 2), order[:k + 1])
+    in_first = np.zeros(len(blocks), bool)
+    in_first[best[1]] = True
+    return ([b for b, yes in zip(blocks, in_first, strict=True) if yes],
+            [b for b, yes in zip(blocks, in_first, strict=True) if not yes])
 
 
-def _changes(H: nx.Graph, top: int, before: dict) -> tuple[list, dict, list]:
-    """What a fill changed in ``H``: the roads it removed (split), the nodes it added (ids
-    above ``top``) and the roads it added, from the edge data objects ``before`` it (held,
-    not their ids: a road removed and made again between the same two nodes could get a
-    freed object's id)."""
-    removed = [e for e in before if not H.has_edge(*e)]
+def _fill_changes(H: nx.Graph, top: int, before: dict, index: EdgeIndex) -> tuple:
+    """What a fill changed in ``H`` (whose new node ids are above ``top``), for
+    :func:`_merge_fill`: where it split each road that was there ``before`` it (the positions
+    of the new junctions on it, by node), the nodes it added (with those junctions) and the
+    roads it added that are not pieces of those roads. ``before`` holds the edge data objects
+    (not their ids: a road removed and made again between the same two nodes could get a
+    freed object's id); ``index.origin`` says which road each piece was cut from."""
+    splits: dict = {}
+    for piece, road in index.origin.items():
+        if road in before and H.has_edge(*piece):
+            splits.setdefault(road, set()).update(n for n in piece if n > top)
     added_nodes = {n: H.nodes[n]["xy"] for n in H.nodes if n > top}
     added = [(u, v, d) for u, v, d in H.edges(data=True)
-             if before.get((u, v), before.get((v, u))) is not d]
-    return removed, added_nodes, added
+             if before.get(edge_key(u, v)) is not d
+             and index.origin.get(edge_key(u, v)) not in before]
+    return {road: sorted(nodes) for road, nodes in sorted(splits.items())}, added_nodes, added
 
 
-def _apply_changes(G: nx.Graph, removed: list, added_nodes: dict, added: list) -> None:
-    """Apply :func:`_changes` of another copy of ``G`` whose new node ids may be taken here:
-    they get the next free ids, in order."""
-    top = max(G.nodes)
-    new_id = {n: top + 1 + k for k, n in enumerate(sorted(added_nodes))}
-    G.remove_edges_from(removed)
+def _merge_fill(G: nx.Graph, index: EdgeIndex, min_edge: float, splits: dict,
+                added_nodes: dict, added: list) -> None:
+    """Apply another process's :func:`_fill_changes` to ``G``, which a fill of other blocks
+    changed since the two were the same. Each junction the other made on a road is made here
+    on the piece of that road it lies on (or is the piece's end within ``min_edge``, as for a
+    chord of this process); the other nodes get the next free ids, in order; then its roads
+    are added. ``index`` is ``G``'s road index, pieces recorded."""
+    node_of = {}
+    for road, nodes in splits.items():
+        for n in nodes:
+            xy = added_nodes[n]
+            pieces = [key for key in index.near(Point(xy), 1e-6)
+                      if key == road or index.origin.get(key) == road]
+            if not pieces:  # not on the road as this process has it: cannot happen
+                raise AssertionError(f"junction {n} at {xy} is off road {road}")
+            node_of[n] = split_edge_at(G, pieces[0], xy, min_edge, index)
     for n in sorted(added_nodes):
-        G.add_node(new_id[n], xy=added_nodes[n])
-    G.add_edges_from((new_id.get(u, u), new_id.get(v, v),
-                      {**d, "start": new_id.get(d["start"], d["start"])}) for u, v, d in added)
+        if n not in node_of:
+            node_of[n] = index.new_node_id()
+            G.add_node(node_of[n], xy=added_nodes[n])
+    for u, v, data in added:
+        a, b = node_of.get(u, u), node_of.get(v, v)
+        coords = data["coords"] if data["start"] == u else data["coords"][::-1]
+        if G.has_edge(a, b):  # both processes joined these two nodes: a shape node between
+            k = len(coords) // 2
+            m = index.new_node_id()
+            G.add_node(m, xy=(float(coords[k][0]), float(coords[k][1])))
+            pairs = [(a, m, coords[:k + 1]), (m, b, coords[k:])]
+        else:
+            pairs = [(a, b, coords)]
+        for p, q, part in pairs:
+            add_road(G, p, q, part, data["road_class"])
+            index.add(p, q)
 
 
 def counted_change(G: nx.Graph, end, stub: float) -> int:
@@ -629,8 +649,6 @@ def insert_chord(
     touching = index.near(line, 0.5)
     if not 1 <= len(touching) <= (1 if start_node is not None else 2):
         return None
-    if any(key in index.frozen for key in touching):
-        return None
     nodes = [] if start_node is None else [start_node]
     for point in (chord[0], chord[-1])[len(nodes):]:
         # Look the edge up again for the second end: splitting for the first may have cut it.
@@ -670,6 +688,8 @@ def split_edge_at(G: nx.Graph, edge, point, tolerance: float, index: EdgeIndex):
     first, second = _pieces(line, [0, s, line.length])  # both substrings, one walk
     node = index.new_node_id()
     G.add_node(node, xy=tuple(second[0]))
+    road = index.origin.pop(edge_key(u, v), edge_key(u, v))
+    index.origin[edge_key(u, node)] = index.origin[edge_key(node, v)] = road
     index.remove(u, v)
     G.remove_edge(u, v)
     add_road(G, u, node, first, cls)
