@@ -36,6 +36,7 @@ from roadweaver_sumo.generative.sampling import (
     sample_tokens,
     two_threads,
     window_starts,
+    window_steps,
 )
 from roadweaver_sumo.generative.settings import MaskGITConfig, TrainSettings, VQVAEConfig
 from roadweaver_sumo.generative.training import distil_guidance, train_maskgit, train_vqvae
@@ -324,7 +325,7 @@ def test_out_of_order_sampling_gives_the_raster_order_tokens(monkeypatch, guidan
             for x in window_starts(shape[1], g):
                 known_mask = done[y:y + g, x:x + g].reshape(-1)
                 out = gen.sampler.sample(
-                    modulations, rng, steps=max(2, math.ceil(STEPS * (1 - known_mask.mean()))),
+                    modulations, rng, steps=window_steps(1 - known_mask.mean()),
                     known=canvas[y:y + g, x:x + g].reshape(-1, G), known_mask=known_mask,
                     guidance=guidance, temperature=TEMPERATURE, map_rows=pool.map)
                 canvas[y:y + g, x:x + g] = out.reshape(g, g, G)
@@ -453,3 +454,11 @@ def test_train_without_torch_says_how_to_get_it(tmp_path, capsys, monkeypatch):
                      str(tmp_path / "m.npz")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "training needs torch" in err and "[train]" in err
+
+
+def test_a_window_that_is_mostly_context_takes_fewer_steps():
+    """The transformer passes of a large map: a fresh window takes every step, a window with
+    half its tokens known half of them, one with three quarters known a single step."""
+    assert window_steps(1.0) == STEPS
+    assert window_steps(0.5) == math.ceil(STEPS / 2)
+    assert window_steps(0.25) == 1 and window_steps(0.01) == 1
