@@ -16,7 +16,7 @@ from shapely.geometry import LineString, Point
 from roadweaver_sumo.errors import RoadweaverError
 from roadweaver_sumo.export import map_files
 from roadweaver_sumo.export.netconvert import available_templates, run_netconvert
-from roadweaver_sumo.export.sumo_plain import _num, _shape, lane_connections, write_plain
+from roadweaver_sumo.export.sumo_plain import _num, _points, lane_connections, write_plain
 from roadweaver_sumo.forked import can_fork
 from roadweaver_sumo.hdmap import build_hdmap
 from roadweaver_sumo.roadgraph import add_road, new_road_graph
@@ -247,5 +247,5 @@ def test_shapes_write_every_number_as_single_numbers_are_written():
     lines = [np.array(np.meshgrid(edge, edge)).reshape(2, -1).T]
     lines += [rng.normal(0, scale, (20, 2)) for scale in (0.01, 1.0, 5000.0)]
     for line in lines:
-        assert _shape(line) == " ".join(f"{_num(x)},{_num(y)}" for x, y in line)
-    assert "-0.00," not in _shape(lines[0]) and "0.00,0.00" in _shape(lines[0])
+        assert _points(line) == [f"{_num(x)},{_num(y)}" for x, y in line]
+    assert "-0.00," not in " ".join(_points(lines[0])) and "0.00,0.00" in _points(lines[0])

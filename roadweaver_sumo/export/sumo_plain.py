@@ -36,12 +36,12 @@ def _num(x: float) -> str:
     return f"{round(float(x), 2) + 0.0:.2f}"
 
 
-def _shape(coords) -> str:
-    """``x,y x,y ...`` with each number as :func:`_num` writes it (``%.2f`` rounds as
-    ``round`` does; what would print as ``-0.00`` is zeroed first), a whole line at once."""
+def _points(coords) -> list[str]:
+    """``x,y`` per point, each number as :func:`_num` writes it (``%.2f`` rounds as ``round``
+    does; what would print as ``-0.00`` is zeroed first), a whole line at once."""
     xy = np.asarray(coords, dtype=float)
     xy = np.where((xy > -0.005) & (xy <= 0.0), 0.0, xy)
-    return " ".join(map("%.2f,%.2f".__mod__, map(tuple, xy.tolist())))
+    return list(map("%.2f,%.2f".__mod__, map(tuple, xy.tolist())))
 
 
 def _root(tag: str, schema: str) -> Element:
@@ -81,8 +81,9 @@ def plain_edges(hd: HDMap) -> Element:
     root = _root("edges", "edges_file.xsd")
     for rid in sorted(hd.roads):
         road = hd.roads[rid]
+        points = _points(road.centreline)  # formatted once, for both directions
         for direction in DIRECTIONS:
-            line = road.centreline if direction == "f" else road.centreline[::-1]
+            line = points if direction == "f" else points[::-1]
             root.append(leaf("edge", attr_text((
                 ("id", edge_id(rid, direction)),
                 ("from", node_id(road.starts_at(direction))),
@@ -92,7 +93,7 @@ def plain_edges(hd: HDMap) -> Element:
                 ("speed", _num(road.speed)),
                 ("width", _num(road.lane_width)),
                 ("spreadType", "right"),
-                ("shape", _shape(line)),
+                ("shape", " ".join(line)),
             ))))
     return root
 
