@@ -9,6 +9,8 @@ the sampled sum of proportional set sizes over it and its children (the forked m
 netconvert, duarouter), sampled in one more run of seed 0 whose times are not used: sampling
 ten times a second takes a share of a core, and the timed runs (ours and netgenerate's) are
 not sampled;
+netgenerate --rand gets the iterations that give it our road-node count as ``evaluate``
+counts them (one untimed calibration run per size);
 "generation" is skeleton + expansion + hdmap + export (our files written), "total" adds
 netconvert and demand. Validation is not timed. Quality figures all come from ``evaluate``.
 CPU contention (a training job, the load average) is recorded, since it inflates every time.
@@ -34,7 +36,10 @@ QUALITY = ("road_nodes", "density", "lcc_ratio", "dead_end_ratio", "cycle_ratio"
            "crossings_without_junction", "sharp_bends", "bearing_entropy", "orientation_order",
            "lane_reachability", "junction_reachability")
 DEFAULT_OSM = Path("/work/shared/data/osm/bad-hersfeld-de.osm.gz")
-RAND_NODES_PER_ITERATION = 0.85  # netgenerate --rand: road nodes per iteration, measured
+#: netgenerate --rand: road nodes (``evaluate``) per iteration, a first guess; each size's
+#: count is then matched to ours by one calibration run (:func:`rand_iterations`). (3,479
+#: iterations give 3,109 road nodes, 140 give 129.)
+RAND_NODES_PER_ITERATION = 0.89
 
 
 def child(size: float, density: float, seed: int, skeleton: str, folder: Path) -> None:
@@ -140,6 +145,20 @@ def sumo_binary(name: str) -> str:
     return binary(name)
 
 
+def rand_iterations(road_nodes: int, out: Path) -> tuple[int, int]:
+    """The ``--rand.iterations`` that give about ``road_nodes`` road nodes, as ``evaluate``
+    counts them (netgenerate's own node count includes the nodes inside roads), and the
+    count they gave: one untimed run at the first guess, scaled once by what it gave."""
+    from roadweaver_sumo.validate.evaluate import evaluate_net
+
+    guess = max(1, round(road_nodes / RAND_NODES_PER_ITERATION))
+    netgenerate(["--rand", "--rand.iterations", str(guess)], out)
+    got = evaluate_net(out)["road_nodes"]
+    iterations = max(1, round(guess * road_nodes / max(got, 1)))
+    netgenerate(["--rand", "--rand.iterations", str(iterations)], out)
+    return iterations, evaluate_net(out)["road_nodes"]
+
+
 def netgenerate(args: list[str], out: Path) -> float:
     """Run netgenerate; return its wall time (s)."""
     from roadweaver_sumo.sumo_tools import child_env
@@ -208,7 +227,7 @@ def measure(args, work: Path) -> None:
                "density": args.density, "sizes": {}}
     print(f"contention: {results['contention_before']}")
     print("size_m " + " ".join(f"{s:>10s}" for s in STAGES)
-          + "  generation  total  gen/km2  peak_MB  nodes  netgenerate  ratio")
+          + "  generation  total  gen/km2  peak_MB  nodes  rand_nodes  netgenerate  ratio")
     for size, n in zip(sizes, repeats, strict=True):
         # Each of our runs is followed by a netgenerate run, so that a machine that slows down
         # during the bench slows both; the ratio is of the two medians.
@@ -216,7 +235,9 @@ def measure(args, work: Path) -> None:
         for seed in range(n):
             runs.append(run_child(size, args.density, seed, args.skeleton,
                                   work / f"ours-{size:.0f}-{seed}"))
-            iterations = max(1, round(runs[0]["road_nodes"] / RAND_NODES_PER_ITERATION))
+            if seed == 0:
+                iterations, rand_nodes = rand_iterations(runs[0]["road_nodes"],
+                                                         work / f"rand-{size:.0f}.net.xml")
             rand_runs.append(netgenerate(["--rand", "--rand.iterations", str(iterations)],
                                          work / f"rand-{size:.0f}.net.xml"))
         memory = run_child(size, args.density, 0, args.skeleton, work / f"memory-{size:.0f}",
@@ -232,11 +253,12 @@ def measure(args, work: Path) -> None:
                  "road_nodes": nodes, "runs": runs, "netgenerate_rand_s": rand_s,
                  "netgenerate_rand_runs_s": rand_runs,
                  "netgenerate_rand_iterations": iterations,
+                 "netgenerate_rand_road_nodes": rand_nodes,
                  "netgenerate_over_generation": rand_s / gen}
         results["sizes"][f"{size:.0f}"] = entry
         print(f"{size:6.0f} " + " ".join(f"{med[s]:10.3f}" for s in STAGES)
               + f"  {gen:10.3f} {total:6.2f}  {gen / area:7.4f}  {entry['peak_mb']:7.0f}"
-              f"  {nodes:5d}  {rand_s:10.2f}  {rand_s / gen:5.2f}x", flush=True)
+              f"  {nodes:5d}  {rand_nodes:10d}  {rand_s:10.2f}  {rand_s / gen:5.2f}x", flush=True)
     base = results["sizes"][f"{sizes[0]:.0f}"]["generation_per_km2_s"]
     for size in sizes[1:]:
         ratio = results["sizes"][f"{size:.0f}"]["generation_per_km2_s"] / base
