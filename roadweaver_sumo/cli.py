@@ -15,6 +15,7 @@ import warnings
 from pathlib import Path
 
 from . import __version__
+from .allocator import keep_freed_memory
 from .errors import RoadweaverError
 from .spec import SKELETONS, STYLES, ScenarioSpec, parse_size
 
@@ -108,6 +109,7 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = _one_line_warning
+    keep_freed_memory()
     try:
         args = build_parser().parse_args(argv)
         if args.command == "make-scenario":
