@@ -214,9 +214,9 @@ def test_either_process_may_write_first_into_a_new_folder(tmp_path, monkeypatch)
     the child's plain files to create it (a race that a slow child lost)."""
     write_plain = map_files.write_plain
 
-    def late_plain(hd, folder):
+    def late_plain(hd, folder, **files):
         time.sleep(0.3)
-        return write_plain(hd, folder)
+        return write_plain(hd, folder, **files)
 
     monkeypatch.setattr(map_files, "write_plain", late_plain)
     map_files.write_map_files(build_hdmap(town(), GEO_ORIGIN), tmp_path / "new" / "folder")

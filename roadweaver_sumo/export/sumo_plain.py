@@ -134,11 +134,15 @@ def plain_connections(hd: HDMap) -> Element:
     return root
 
 
-def write_plain(hdmap: HDMap, plain_dir: Path) -> None:
-    """Write ``map.nod.xml``, ``map.edg.xml`` and ``map.con.xml`` into ``plain_dir`` (created if
-    missing). Output is deterministic: sorted ids, two-decimal coordinates."""
+PLAIN_FILES = {"map.nod.xml": plain_nodes, "map.edg.xml": plain_edges,
+               "map.con.xml": plain_connections}
+
+
+def write_plain(hdmap: HDMap, plain_dir: Path, files=tuple(PLAIN_FILES)) -> None:
+    """Write ``files`` (by default ``map.nod.xml``, ``map.edg.xml`` and ``map.con.xml``) into
+    ``plain_dir`` (created if missing). Output is deterministic: sorted ids, two-decimal
+    coordinates."""
     plain_dir = Path(plain_dir)
     plain_dir.mkdir(parents=True, exist_ok=True)
-    for name, root in (("map.nod.xml", plain_nodes(hdmap)), ("map.edg.xml", plain_edges(hdmap)),
-                       ("map.con.xml", plain_connections(hdmap))):
-        write(root, plain_dir / name)  # the bytes of lxml's pretty_print, faster
+    for name in files:
+        write(PLAIN_FILES[name](hdmap), plain_dir / name)  # lxml's pretty_print bytes, faster
