@@ -70,8 +70,10 @@ def fill_to_density(
         _split_blocks(G, blocks, need, field, rng, min_edge, min_angle, stub)
         return
     area = sum(f.area for f in blocks)
+    index = EdgeIndex(G)  # one road index for the first splits and this process's group
     added, blocks = _split_blocks(G, blocks, need, field, rng, min_edge, min_angle, stub,
-                                  largest=BALANCE_SHARE * area)
+                                  largest=BALANCE_SHARE * area, index=index)
+    index.origin.clear()  # the pieces the first splits made are roads of their own now
     need -= added
     if need <= 0 or not blocks:
         return
@@ -84,12 +86,12 @@ def fill_to_density(
 
     def second_group() -> tuple:
         before = {edge_key(u, v): d for u, v, d in H.edges(data=True)}
-        index = EdgeIndex(H)
+        # A forked child has this process's road index as it was when forked; a copy its own.
+        own = index if H is G else EdgeIndex(H)
         added, left = _split_blocks(H, second, need - first_need, field, second_rng,
-                                    min_edge, min_angle, stub, index=index)
-        return added, left, _fill_changes(H, top, before, index)
+                                    min_edge, min_angle, stub, index=own)
+        return added, left, _fill_changes(H, top, before, own)
 
-    index = EdgeIndex(G)
     (first_added, first_left), (second_added, second_left, changes) = forked.beside(
         second_group, lambda: _split_blocks(G, first, first_need, field, first_rng, min_edge,
                                             min_angle, stub, index=index),
