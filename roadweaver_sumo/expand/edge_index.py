@@ -25,14 +25,7 @@ class EdgeIndex:
         self.cell = cell
         self.cells: dict[tuple[int, int], set] = defaultdict(set)
         self.lines: dict[tuple, LineString] = {}
-        edges = list(G.edges)
-        if edges:  # all lines made in one call (one each took most of the build)
-            coords = [G.edges[e]["coords"] for e in edges]
-            which = np.repeat(np.arange(len(coords)), [len(c) for c in coords])
-            lines = shapely.linestrings(np.concatenate(coords), indices=which)
-            for (u, v), line, bounds in zip(edges, lines, shapely.bounds(lines).tolist(),
-                                            strict=True):
-                self._insert(edge_key(u, v), line, bounds)
+        self.add_many(list(G.edges))
         self._top = max(G.nodes, default=-1)
         #: the road (its key when the index was made) each piece of a split road was cut from
         self.origin: dict[tuple, tuple] = {}
@@ -53,6 +46,18 @@ class EdgeIndex:
                 math.floor((y0 - pad) / self.cell), math.floor((y1 + pad) / self.cell) + 1
             ):
                 yield cx, cy
+
+    def add_many(self, edges: list[tuple]) -> None:
+        """:meth:`add` for each of ``edges``, their lines made in one call (one each took
+        most of the time of indexing a whole graph)."""
+        if not edges:
+            return
+        coords = [self.G.edges[e]["coords"] for e in edges]
+        which = np.repeat(np.arange(len(coords)), [len(c) for c in coords])
+        lines = shapely.linestrings(np.concatenate(coords), indices=which)
+        for (u, v), line, bounds in zip(edges, lines, shapely.bounds(lines).tolist(),
+                                        strict=True):
+            self._insert(edge_key(u, v), line, bounds)
 
     def add(self, u, v) -> None:
         line = LineString(self.G.edges[u, v]["coords"])

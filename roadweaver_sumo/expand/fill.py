@@ -210,6 +210,7 @@ def _merge_fill(G: nx.Graph, index: EdgeIndex, min_edge: float, splits: dict,
         if n not in node_of:
             node_of[n] = index.new_node_id()
             G.add_node(node_of[n], xy=added_nodes[n])
+    roads = []
     for u, v, data in added:
         a, b = node_of.get(u, u), node_of.get(v, v)
         coords = data["coords"] if data["start"] == u else data["coords"][::-1]
@@ -222,7 +223,8 @@ def _merge_fill(G: nx.Graph, index: EdgeIndex, min_edge: float, splits: dict,
             pairs = [(a, b, coords)]
         for p, q, part in pairs:
             add_road(G, p, q, part, data["road_class"])
-            index.add(p, q)
+            roads.append((p, q))
+    index.add_many(roads)
 
 
 def counted_change(G: nx.Graph, end, stub: float) -> int:
