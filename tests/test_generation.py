@@ -351,6 +351,17 @@ def test_noding_turns_every_crossing_into_a_junction():
     assert classes == ["arterial", "arterial", "local", "local"]
 
 
+def test_a_crossing_left_by_merging_close_junctions_becomes_a_junction():
+    """On this map the clean-up before the density fill merges two junctions that no road
+    joins, and a moved road then crosses a neighbour; the re-noding after the fill makes that
+    crossing a junction (without it the map kept one crossing without a junction)."""
+    from roadweaver_sumo.metrics import crossings_without_junction
+
+    spec = ScenarioSpec(vehicles=1, density=40, width=2000, height=2000, seed=0,
+                        skeleton="learned", style="grid")
+    assert crossings_without_junction(expand_skeleton(spec, make_skeleton(spec))) == 0
+
+
 def test_rectangular_maps_fill_their_whole_extent():
     spec, G = generate(density=30, width=2400, height=800, style="grid", seed=2)
     xy = np.array([G.nodes[n]["xy"] for n in G.nodes])

@@ -43,10 +43,12 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     target = spec.target_road_nodes
     rng = spec.rng(STAGE_FILL)
     for _ in range(DENSITY_ROUNDS):
-        # The fill keeps the graph planar (a chord that touches a road it does not end on is
-        # refused) and pruning only removes roads, so no re-noding follows them.
         fill_to_density(G, target, field, rng, MIN_EDGE, MIN_ANGLE, stub=stub)
         prune_to_density(G, target, stub)
+        # The fill keeps the graph planar, but the clean-up before it may not have: merging
+        # junctions that no road joins moves roads, which can then cross a neighbour (3 of
+        # 100 learned 2 km maps of bench/quality_sweep.py kept such a crossing without this).
+        G = _renode(G, [])
         clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN,
               min_block_area=MIN_BLOCK_AREA)
         if abs(road_node_count(G) - target) <= max(1, DENSITY_TOLERANCE * target):
