@@ -351,6 +351,31 @@ def test_noding_turns_every_crossing_into_a_junction():
     assert classes == ["arterial", "arterial", "local", "local"]
 
 
+def test_roads_meeting_only_at_their_nodes_need_no_re_noding():
+    """The check that decides whether the graph is re-noded after the fill: roads may share
+    end nodes; a crossing, or a road ending inside another, is not planar."""
+    from roadweaver_sumo.expand import _roads_meet_only_at_ends
+    from roadweaver_sumo.roadgraph import add_road, new_road_graph
+
+    def graph(*roads):
+        G = new_road_graph(100, 100)
+        points = {p for road in roads for p in (road[0], road[-1])}
+        ids = {p: k for k, p in enumerate(sorted(points))}
+        for p, k in ids.items():
+            G.add_node(k, xy=p)
+        for road in roads:
+            add_road(G, ids[road[0]], ids[road[-1]], np.array(road, float), "local")
+        return G
+
+    star = graph(((0.0, 50.0), (50.0, 50.0)), ((50.0, 50.0), (100.0, 50.0)),
+                 ((50.0, 50.0), (50.0, 100.0)))
+    assert _roads_meet_only_at_ends(star)
+    assert not _roads_meet_only_at_ends(graph(((0.0, 50.0), (100.0, 50.0)),
+                                              ((50.0, 0.0), (50.0, 100.0))))
+    assert not _roads_meet_only_at_ends(graph(((0.0, 50.0), (100.0, 50.0)),
+                                              ((50.0, 50.0), (50.0, 100.0))))
+
+
 def test_a_crossing_left_by_merging_close_junctions_becomes_a_junction():
     """On this map the clean-up before the density fill merges two junctions that no road
     joins, and a moved road then crosses a neighbour; the re-noding after the fill makes that
