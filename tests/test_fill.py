@@ -7,7 +7,14 @@ from shapely.geometry import LineString, Polygon
 
 from roadweaver_sumo.expand import MIN_EDGE
 from roadweaver_sumo.expand.edge_index import EdgeIndex, edge_key
-from roadweaver_sumo.expand.fill import _NodePoints, _off_ring, _split_face, faces, insert_chord
+from roadweaver_sumo.expand.fill import (
+    _joined_roads,
+    _NodePoints,
+    _off_ring,
+    _split_face,
+    faces,
+    insert_chord,
+)
 from roadweaver_sumo.expand.planar import build_planar_graph
 from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
@@ -27,21 +34,36 @@ def test_off_ring_drops_only_the_roads_made_of_ring_segments():
 
 def test_split_face_with_a_dead_end_matches_noding_every_road():
     """A chord ending on a dead end inside the block: the two blocks come out exactly (same
-    vertices, order and start) as when the block's own edge roads are noded too."""
+    vertices, order and start) as when every road in the block is noded too: its own edge
+    roads and the dead ends the chord is not joined to (two trees, one from each side)."""
     ring = np.array([[0, 0], [800, 0], [800, 400], [0, 400], [0, 0]], float)
     dead_end = np.array([[0, 150], [600, 150]], float)
-    G = build_planar_graph([(ring, "collector"), (dead_end, "local")], 1000, 1000)
+    others = [np.array([[800, 300], [500, 300], [500, 220]], float),
+              np.array([[500, 300], [450, 350]], float),
+              np.array([[100, 0], [100, 100]], float)]
+    G = build_planar_graph([(ring, "collector"), (dead_end, "local")]
+                           + [(road, "local") for road in others], 1000, 1000)
     (block,) = faces(G)
     index = EdgeIndex(G)
     chord = np.array([[300.0, 150.0], [300.0, 275.0], [300.0, 400.0]])
-    assert insert_chord(G, chord, MIN_EDGE, index) is not None
-    parts = _split_face(block, chord, index)
+    ends = insert_chord(G, chord, MIN_EDGE, index)
+    assert ends is not None
+    parts = _split_face(block, chord, ends, index)
     assert len(parts) == 2
     everything = [index.lines[key] for key in index.near(block, 0.0)]
     noded = shapely.union_all([block.exterior, *block.interiors, *everything])
     found = shapely.get_parts(shapely.polygonize(shapely.get_parts(noded)))
     expected = [p for p in found if p.area > 1.0 and block.contains(p.representative_point())]
     assert [shapely.to_wkb(p) for p in parts] == [shapely.to_wkb(p) for p in expected]
+
+
+def test_joined_roads_are_those_reachable_from_the_chord_ends():
+    """Two trees and a road of their own: only the roads reachable from the ends count, in
+    the order given."""
+    roads = [(7, 8), (1, 2), (4, 5), (2, 3), (5, 6), (3, 9)]
+    assert _joined_roads(roads, (1, 6)) == [(1, 2), (4, 5), (2, 3), (5, 6), (3, 9)]
+    assert _joined_roads(roads, (9,)) == [(1, 2), (2, 3), (3, 9)]
+    assert _joined_roads(roads, (10,)) == []
 
 
 def test_nodes_near_a_long_ring_are_found_as_by_measuring_every_one():
