@@ -43,6 +43,46 @@ def test_clean_up_leaves_no_short_roads_or_sharp_junctions():
             assert gaps.min() >= math.radians(MIN_ANGLE) - 1e-6
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_clean_up_of_the_changed_nodes_leaves_what_a_whole_clean_up_leaves(seed):
+    """``clean(changed=...)`` looks for short roads and sharp angles only at the nodes whose
+    roads changed since the graph was cleaned. Roads removed from a cleaned graph (as
+    ``open_tiny_blocks`` removes them) and others added between its junctions must come out
+    as cleaning the whole graph again leaves them: the same roads, polylines and classes."""
+    from roadweaver_sumo.expand import BORDER_MARGIN
+    from roadweaver_sumo.expand.planar import clean
+    from roadweaver_sumo.roadgraph import add_road
+
+    rng = np.random.default_rng(seed)
+    frame = np.array([[15, 15], [985, 15], [985, 985], [15, 985], [15, 15]], float)
+    roads = [(frame, "collector")] + [(rng.uniform(0, 1000, (2, 2)), "local") for _ in range(40)]
+    G = build_planar_graph(roads, 1000, 1000)
+    settings = {"min_edge": MIN_EDGE, "min_angle": MIN_ANGLE, "stub": 40.0,
+                "margin": BORDER_MARGIN}
+    clean(G, **settings)
+    changed = set()
+    edges = sorted(G.edges)
+    for k in rng.choice(len(edges), 6, replace=False):
+        G.remove_edge(*edges[k])
+        changed.update(edges[k])
+    nodes = sorted(G.nodes)
+    for a, b in rng.choice(nodes, (3, 2), replace=False):
+        if not G.has_edge(a, b):
+            add_road(G, a, b, np.array([G.nodes[a]["xy"], G.nodes[b]["xy"]]), "local")
+            changed.update((a, b))
+    whole = G.copy()
+    before = sorted(G.edges)
+    clean(G, **settings, changed=changed)
+    clean(whole, **settings)
+
+    def roads_of(H):
+        return sorted((u, v, H.edges[u, v]["road_class"], H.edges[u, v]["coords"].tobytes())
+                      for u, v in H.edges)
+
+    assert sorted(G.edges) != before  # the clean-up had something to do
+    assert roads_of(G) == roads_of(whole)
+
+
 def _sharpest_turn_deg(coords: np.ndarray, reach: float = 5.0) -> float:
     """The largest change of direction along a polyline, each direction taken over ``reach``
     metres (a hairpin smoothed into many tiny segments turns little at any one vertex)."""
