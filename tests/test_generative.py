@@ -297,8 +297,11 @@ def test_group_norm_statistics_of_all_groups_in_one_pass_are_those_group_by_grou
     for shape, groups in (((9, 7, 32), 8), ((40, 33, 64), 8), ((5, 6, 16), 4)):
         x = (rng.normal(size=shape) * 10.0 ** rng.uniform(-6, 6, shape)).astype(np.float32)
         weight, bias = (rng.normal(size=(2, shape[2])) + [[1.0], [0.0]]).astype(np.float32)
-        assert np.array_equal(inference._norm_silu_padded(x, weight, bias, groups),
-                              reference(x, weight, bias, groups))
+        want = reference(x, weight, bias, groups)
+        assert np.array_equal(inference._norm_silu_padded(x, weight, bias, groups), want)
+        with two_threads() as pool:  # half the groups and half the rows on each thread
+            assert np.array_equal(inference._norm_silu_padded(x, weight, bias, groups,
+                                                              pool.map), want)
 
 
 @pytest.mark.skipif(not SHIPPED_MASKGIT.is_file(), reason="weights not trained yet")
