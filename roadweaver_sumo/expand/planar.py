@@ -393,7 +393,8 @@ MIN_JUNCTION_GAP = 20.0
 
 
 def contract_short_edges(G: nx.Graph, min_length: float,
-                         junction_gap: float = MIN_JUNCTION_GAP, nodes: set | None = None) -> set:
+                         junction_gap: float = MIN_JUNCTION_GAP, nodes: set | None = None,
+                         order: dict | None = None) -> set:
     """Merge the two ends of every road shorter than ``min_length``, and of every road between
     two junctions shorter than ``junction_gap`` (the busier end stays); returns the nodes
     whose roads changed.
@@ -403,11 +404,16 @@ def contract_short_edges(G: nx.Graph, min_length: float,
     road's polyline, so a road of the pass that still exists has the length measured. A road
     becomes short only when it is made or the degree of an end changes, so each pass after
     the first measures only the roads at the nodes the one before changed; ``nodes``: the
-    first pass too (no other road is short)."""
+    first pass too (no other road is short). ``order``: :func:`node_order` of ``G``, or of
+    ``G`` before nodes were removed from it."""
     longest = max(junction_gap, min_length)
     touched: set = set()
     while True:
-        edges = sorted_edge_list(G) if nodes is None else _edges_at(G, nodes)
+        if nodes is None:
+            edges = sorted_edge_list(G)
+        else:
+            order = node_order(G) if order is None else order
+            edges = _edges_at(G, nodes, order)
         nodes = set()
         for k in np.flatnonzero(_maybe_shorter([data["coords"] for _, _, data in edges],
                                                longest)).tolist():
@@ -425,15 +431,28 @@ def contract_short_edges(G: nx.Graph, min_length: float,
         touched |= nodes
 
 
-def _edges_at(G: nx.Graph, nodes) -> list[tuple]:
+def node_order(G: nx.Graph) -> dict:
+    """Each node's place in the graph's node order (removing nodes keeps the others' order)."""
+    return {n: k for k, n in enumerate(G)}
+
+
+def _edges_at(G: nx.Graph, nodes, order: dict) -> list[tuple]:
     """The roads at ``nodes`` (those still in ``G``) as :func:`sorted_edge_list` lists them:
-    each from the end that comes first in the graph's node order."""
-    position = {n: k for k, n in enumerate(G)}
+    each from the end that comes first in the node ``order``."""
     found = {}
     for n in nodes:
         for w, data in G.adj.get(n, {}).items():
-            found[(n, w) if position[n] < position[w] else (w, n)] = data
+            found[(n, w) if order[n] < order[w] else (w, n)] = data
     return sorted((u, v, data) for (u, v), data in found.items())
+
+
+def _roads_at(G: nx.Graph, nodes) -> list[tuple]:
+    """The roads at ``nodes`` (those still in ``G``), each once, as (u, v, data)."""
+    found = {}
+    for n in nodes:
+        for w, data in G.adj.get(n, {}).items():
+            found[id(data)] = (n, w, data)
+    return list(found.values())
 
 
 def _maybe_shorter(coords: list, length: float) -> np.ndarray:
@@ -449,13 +468,15 @@ def _maybe_shorter(coords: list, length: float) -> np.ndarray:
     return lengths < length * (1 + 1e-9) + 1e-9
 
 
-def merge_close_nodes(G: nx.Graph, radius: float) -> None:
+def merge_close_nodes(G: nx.Graph, radius: float) -> set:
     """Merge junctions closer than ``radius`` even when no road joins them directly, pair by
-    pair in node order. A merge keeps the kept node where it is and makes no node, so the
-    close pairs are found once; a pair whose node has gone is skipped."""
+    pair in node order; returns the nodes whose roads changed. A merge keeps the kept node
+    where it is and makes no node, so the close pairs are found once; a pair whose node has
+    gone is skipped."""
     nodes = sorted(G.nodes)
+    touched: set = set()
     if len(nodes) < 2:
-        return
+        return touched
     pts = np.array([G.nodes[n]["xy"] for n in nodes])
     dropped: set = set()
     for i, j in sorted(cKDTree(pts).query_pairs(radius)):
@@ -464,6 +485,9 @@ def merge_close_nodes(G: nx.Graph, radius: float) -> None:
         keep, drop = _keep_and_drop(G, nodes[i], nodes[j])
         merge_nodes(G, keep, drop)
         dropped.add(drop)
+        touched.add(keep)  # the dropped node's neighbours are the kept one's now
+        touched.update(G.neighbors(keep))
+    return touched
 
 
 def _keep_and_drop(G: nx.Graph, u: int, v: int) -> tuple[int, int]:
@@ -501,14 +525,15 @@ def _meeting_angle(G: nx.Graph, n: int, cache: dict | None) -> float:
 
 
 def dissolve_degree_two(G: nx.Graph, min_angle_deg: float = 0.0,
-                        cache: dict | None = None) -> None:
+                        cache: dict | None = None) -> set:
     """Join the two roads at a degree-2 node into one, unless that would duplicate a road or
     the two meet at less than ``min_angle_deg`` or ``HAIRPIN_ANGLE`` (the joined road would
     double back: that V is :func:`remove_sharp_angles`' to resolve).
 
     A join keeps the degree of every other node (its ends trade a road for a road), so the
-    nodes of degree 2 are found once."""
+    nodes of degree 2 are found once. Returns the nodes whose roads changed."""
     limit = math.radians(max(min_angle_deg, HAIRPIN_ANGLE))
+    touched: set = set()
     for n in sorted(n for n, degree in G.degree() if degree == 2):
         a, b = sorted(G.neighbors(n))
         if a == b or G.has_edge(a, b):
@@ -519,6 +544,8 @@ def dissolve_degree_two(G: nx.Graph, min_angle_deg: float = 0.0,
         cls = higher_class(G.edges[a, n]["road_class"], G.edges[n, b]["road_class"])
         G.remove_node(n)
         add_road(G, a, b, np.vstack([ca, cb[1:]]), cls)
+        touched.update((a, b))
+    return touched
 
 
 def departure_angles(
@@ -576,7 +603,7 @@ def _point_along_steps(c, probe):
 
 
 def remove_sharp_angles(G: nx.Graph, min_angle_deg: float, cache: dict | None = None,
-                        nodes: set | None = None) -> None:
+                        nodes: set | None = None) -> set:
     """Drop the minor road of every pair meeting at a node at less than ``min_angle_deg``,
     sweeping the nodes in order until none is left.
 
@@ -589,7 +616,7 @@ def remove_sharp_angles(G: nx.Graph, min_angle_deg: float, cache: dict | None = 
     visits only the nodes that may have one (:func:`_maybe_sharp_nodes`), and each later one
     only the nodes that lost a road since they were last looked at: every other node would
     find nothing. ``nodes``: the first sweep too (the others were looked at since their roads
-    last changed)."""
+    last changed). Returns the nodes whose roads changed."""
     limit = math.radians(min_angle_deg)
     hairpin = math.radians(max(min_angle_deg, HAIRPIN_ANGLE))
 
@@ -600,25 +627,29 @@ def remove_sharp_angles(G: nx.Graph, min_angle_deg: float, cache: dict | None = 
         G.remove_edge(*road)
         return road
 
-    _sweep(_maybe_sharp_nodes(G, limit, hairpin, nodes), visit)
+    return _sweep(_maybe_sharp_nodes(G, limit, hairpin, nodes), visit)
 
 
-def _sweep(nodes, visit) -> None:
+def _sweep(nodes, visit) -> set:
     """Visit ``nodes`` in order, and again every node that ``visit`` (which returns the nodes
     whose roads it changed) touches: later in the same sweep if it comes after the node
-    visited, else in the next sweep; until a sweep touches no node it already passed."""
+    visited, else in the next sweep; until a sweep touches no node it already passed.
+    Returns every node touched."""
     todo = sorted(nodes)  # a sorted list is a heap
+    touched: set = set()
     while todo:
         queued, again = set(todo), set()
         while todo:
             n = heapq.heappop(todo)
             for m in visit(n):
+                touched.add(m)
                 if m <= n:
                     again.add(m)  # already visited in this sweep: the next one
                 elif m not in queued:
                     heapq.heappush(todo, m)
                     queued.add(m)
         todo = sorted(again)
+    return touched
 
 
 def _maybe_sharp_nodes(G: nx.Graph, limit: float, hairpin: float,
@@ -627,7 +658,7 @@ def _maybe_sharp_nodes(G: nx.Graph, limit: float, hairpin: float,
     :func:`_sharp_pair_road` to drop: every road's bearings at both ends measured in one
     compiled pass (the same steps as :func:`departure_angles`, compared with a margin, so a
     node can only be looked at needlessly)."""
-    edges = edge_list(G) if among is None else _edges_at(G, among)
+    edges = edge_list(G) if among is None else _roads_at(G, among)
     if not edges:
         return []
     coords = [data["coords"] for _, _, data in edges]
@@ -737,14 +768,14 @@ def _ring_nodes(G: nx.Graph, tolerance: float = 1.0) -> set:
             for n in (u, v)}
 
 
-def prune_stubs(G: nx.Graph, max_length: float, margin: float) -> None:
+def prune_stubs(G: nx.Graph, max_length: float, margin: float) -> set:
     """Remove dead-end roads shorter than ``max_length`` or ending within ``margin`` of the map
     border (roads cut off by the border), and nodes left without a road, sweeping the nodes
     in order until none is left, so chains of stubs go too.
 
     Whether a node goes depends on its own roads alone, so a sweep visits only the nodes
     with at most one road at its start and those that lost one since they were looked at
-    (as :func:`remove_sharp_angles` does)."""
+    (as :func:`remove_sharp_angles` does). Returns the nodes whose roads changed."""
     width, height = G.graph["width"], G.graph["height"]
 
     def at_border(n):
@@ -760,7 +791,7 @@ def prune_stubs(G: nx.Graph, max_length: float, margin: float) -> None:
         G.remove_node(n)
         return roads  # a lone node goes without another sweep
 
-    _sweep((n for n, degree in G.degree() if degree <= 1), visit)
+    return _sweep((n for n, degree in G.degree() if degree <= 1), visit)
 
 
 def keep_largest_component(G: nx.Graph) -> None:
@@ -877,47 +908,35 @@ def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: f
 
     Junctions close together are merged in the first round only: no pass moves or adds a
     node, so none come close later. Each later round looks for short roads and sharp angles
-    only at the nodes whose roads the round before changed: every other road and node was
-    looked at since it last changed. (The later rounds change a few roads each, and measuring
-    the whole map again was most of their time: 0.15 s of a learned 10 km map.)
-    ``changed``: ``G`` was cleaned, and since then only these nodes' roads changed."""
+    only at the nodes whose roads the round before changed (each pass returns them): every
+    other road and node was looked at since it last changed. (The later rounds change a few
+    roads each, and measuring the whole map again was most of their time.) ``changed``:
+    ``G`` was cleaned, and since then only these nodes' roads changed."""
     bearings: dict = {}
+    order = node_order(G)  # nodes are only removed here
     settled = False
-    roads = _road_data(G)
     for round_ in range(10):
         before = (G.number_of_nodes(), G.number_of_edges())
-        if round_ == 0 and changed is None:
-            merge_close_nodes(G, min_edge * 0.8)
-        contracted = contract_short_edges(G, min_edge, nodes=changed)
-        remove_sharp_angles(G, min_angle, bearings,
-                            nodes=None if changed is None else changed | contracted)
-        prune_stubs(G, stub, margin)
+        touched = merge_close_nodes(G, min_edge * 0.8) if round_ == 0 and changed is None \
+            else set()
+        touched |= contract_short_edges(G, min_edge, nodes=changed, order=order)
+        touched |= remove_sharp_angles(G, min_angle, bearings,
+                                       nodes=None if changed is None else changed | touched)
+        touched |= prune_stubs(G, stub, margin)
         if keep_largest:
-            keep_largest_component(G)
-        dissolve_degree_two(G, min_angle, bearings)
+            keep_largest_component(G)  # removes whole components: no other node changes
+        touched |= dissolve_degree_two(G, min_angle, bearings)
         if (G.number_of_nodes(), G.number_of_edges()) == before:
             settled = True
             break
-        changed, roads = _changed_nodes(G, roads)
-    if min_block_area > 0 and open_tiny_blocks(G, min_block_area):
-        clean(G, min_edge, min_angle, stub, margin, keep_largest,
-              changed=_changed_nodes(G, roads)[0] if settled else None)
-        return
+        changed = touched
+    if min_block_area > 0:
+        opened = open_tiny_blocks(G, min_block_area)
+        if opened:
+            clean(G, min_edge, min_angle, stub, margin, keep_largest,
+                  changed={n for road in opened for n in road} if settled else None)
+            return
     smooth_bends(G)
-
-
-def _road_data(G: nx.Graph) -> dict:
-    """Each road's data by its identity (held, so no new road can take a freed one's)."""
-    return {id(data): (u, v, data) for u, v, data in edge_list(G)}
-
-
-def _changed_nodes(G: nx.Graph, before: dict) -> tuple[set, dict]:
-    """The nodes still in ``G`` that gained or lost a road since :func:`_road_data` gave
-    ``before`` (a road moved or rejoined is a new road), and the roads now."""
-    now = _road_data(G)
-    ends = [(u, v) for key, (u, v, _) in before.items() if key not in now]
-    ends += [(u, v) for key, (u, v, _) in now.items() if key not in before]
-    return {n for pair in ends for n in pair if n in G}, now
 
 
 #: A block smaller than this is a sliver between junctions, not a city block: netconvert's
@@ -927,25 +946,26 @@ def _changed_nodes(G: nx.Graph, before: dict) -> tuple[set, dict]:
 MIN_BLOCK_AREA = 500.0
 
 
-def open_tiny_blocks(G: nx.Graph, min_area: float = MIN_BLOCK_AREA) -> int:
+def open_tiny_blocks(G: nx.Graph, min_area: float = MIN_BLOCK_AREA) -> list[tuple]:
     """Remove from each block (face) smaller than ``min_area`` the road least worth keeping
-    (:func:`_edge_weight`: never the ring, lowest class, shortest); returns how many went."""
+    (:func:`_edge_weight`: never the ring, lowest class, shortest); returns those roads."""
     roads = sorted_edge_list(G)
     if not roads:
-        return 0
+        return []
     edges = [(u, v) for u, v, _ in roads]
     lines = road_lines(roads)
     blocks = [p for p in shapely.get_parts(shapely.polygonize(lines)) if 1.0 < p.area < min_area]
     if not blocks:
-        return 0
+        return []
     tree = shapely.STRtree(lines)
-    removed = 0
+    removed = []
     for block in sorted(blocks, key=lambda p: p.bounds):
         sides = [edges[k] for k in tree.query(block.exterior, predicate="covers")]
         if not sides or not all(G.has_edge(*e) for e in sides):
             continue  # a side already went with a neighbouring block's: the two are one now
-        G.remove_edge(*min(sides, key=lambda e: (*_edge_weight(G, *e), e)))
-        removed += 1
+        road = min(sides, key=lambda e: (*_edge_weight(G, *e), e))
+        G.remove_edge(*road)
+        removed.append(road)
     return removed
 
 
