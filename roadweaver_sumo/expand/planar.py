@@ -768,14 +768,16 @@ def _ring_nodes(G: nx.Graph, tolerance: float = 1.0) -> set:
             for n in (u, v)}
 
 
-def prune_stubs(G: nx.Graph, max_length: float, margin: float) -> set:
+def prune_stubs(G: nx.Graph, max_length: float, margin: float,
+                nodes: set | None = None) -> set:
     """Remove dead-end roads shorter than ``max_length`` or ending within ``margin`` of the map
     border (roads cut off by the border), and nodes left without a road, sweeping the nodes
     in order until none is left, so chains of stubs go too.
 
     Whether a node goes depends on its own roads alone, so a sweep visits only the nodes
     with at most one road at its start and those that lost one since they were looked at
-    (as :func:`remove_sharp_angles` does). Returns the nodes whose roads changed."""
+    (as :func:`remove_sharp_angles` does); ``nodes``: the first sweep only those of them.
+    Returns the nodes whose roads changed."""
     width, height = G.graph["width"], G.graph["height"]
 
     def at_border(n):
@@ -791,7 +793,9 @@ def prune_stubs(G: nx.Graph, max_length: float, margin: float) -> set:
         G.remove_node(n)
         return roads  # a lone node goes without another sweep
 
-    return _sweep((n for n, degree in G.degree() if degree <= 1), visit)
+    ends = (n for n, degree in G.degree() if degree <= 1) if nodes is None else \
+        [n for n in nodes if n in G and G.degree(n) <= 1]
+    return _sweep(ends, visit)
 
 
 def keep_largest_component(G: nx.Graph) -> None:
@@ -920,11 +924,15 @@ def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: f
         touched = merge_close_nodes(G, min_edge * 0.8) if round_ == 0 and changed is None \
             else set()
         touched |= contract_short_edges(G, min_edge, nodes=changed, order=order)
-        touched |= remove_sharp_angles(G, min_angle, bearings,
-                                       nodes=None if changed is None else changed | touched)
-        touched |= prune_stubs(G, stub, margin)
-        if keep_largest:
-            keep_largest_component(G)  # removes whole components: no other node changes
+        cut = remove_sharp_angles(G, min_angle, bearings,
+                                  nodes=None if changed is None else changed | touched)
+        touched |= cut
+        touched |= prune_stubs(G, stub, margin,
+                               nodes=None if changed is None else changed | touched)
+        # Only a removed road can split a component (a merge, a pruned dead end or a join
+        # cannot), and this removes whole components: no other node changes.
+        if keep_largest and (changed is None or round_ == 0 or cut):
+            keep_largest_component(G)
         touched |= dissolve_degree_two(G, min_angle, bearings)
         if (G.number_of_nodes(), G.number_of_edges()) == before:
             settled = True
