@@ -27,11 +27,11 @@ from shapely.geometry import LineString, Point, Polygon
 
 from .. import forked
 from ..metrics import road_node_count
-from ..roadgraph import add_road, edge_coords, edge_length
+from ..roadgraph import add_road, edge_coords, edge_length, edge_list
 from ..streamlines import choose_axis, follow_field
 from ..tensor_field import TensorField
 from .edge_index import EdgeIndex, edge_key
-from .planar import point_along
+from .planar import point_along, road_lines
 
 STEP = 20.0  # metres per Euler step of a fill road (locals are short and gently curved)
 CONTINUE_SHARE = 0.5  # share of blocks first offered a continuation of a side street
@@ -40,7 +40,7 @@ STRAIGHT_CAP = 150.0  # degrees: the two roads of a T's bar are at least this cl
 
 def faces(G: nx.Graph) -> list[Polygon]:
     """Bounded faces (blocks) of the planar road graph."""
-    lines = [shapely.LineString(G.edges[e]["coords"]) for e in G.edges]
+    lines = road_lines(edge_list(G))  # one shapely call for all roads
     return [p for p in shapely.get_parts(shapely.polygonize(lines)) if p.area > 1.0]
 
 
