@@ -100,7 +100,32 @@ def test_every_road_and_connector_is_a_road(exported):
     expected = {f"r{r}" for r in hd.roads} | {c.id for c in hd.connectors()}
     assert set(_roads(root)) == expected
     assert len(list(root.iter("road"))) == len(expected)
-    assert {j.get("id") for j in root.iter("junction")} == {str(j) for j in hd.junctions}
+
+
+def test_junction_ids_are_apart_from_road_ids(exported):
+    """CARLA tells a connecting road by looking its ``junction`` id up among road ids: a
+    junction id that is also a road id leaves the lanes ending there without successors."""
+    hd, _, root = exported
+    junctions = {j.get("name"): j.get("id") for j in root.iter("junction")}
+    assert set(junctions) == {f"n{j}" for j in hd.junctions}
+    assert len(set(junctions.values())) == len(junctions)
+    assert not {r.get("id") for r in root.iter("road")} & set(junctions.values())
+    for road in root.iter("road"):
+        if road.get("junction") != "-1":
+            assert road.get("junction") == junctions[f"n{hd.lanes[road.get('name')].junction}"]
+        for link in road.iterfind("link/*[@elementType='junction']"):
+            assert link.get("elementId") in junctions.values()
+
+
+def test_road_types_are_the_classic_set_with_the_class_as_user_data(exported):
+    """opendrive2lanelet and other pre-1.7 readers know only the 1.4 road types."""
+    hd, _, root = exported
+    for road in root.iter("road"):
+        (kind,) = road.iterfind("type")
+        assert kind.get("type") == "town"
+        name = road.get("name")
+        road_class = (hd.lanes[name] if name.startswith("j") else hd.roads[int(name[1:])]).road_class
+        assert kind.find("userData[@code='roadClass']").get("value") == road_class
 
 
 def test_lane_links_are_exactly_the_lane_graph(exported):

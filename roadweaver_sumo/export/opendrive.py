@@ -7,6 +7,13 @@
 * Every connector lane becomes a one-lane connecting road (ids after the roads, name = the
   connector id) whose reference line is the connector's Bezier as an exact ``paramPoly3``;
   a ``laneOffset`` of half the (linearly changing) width centres lane ``-1`` on it.
+* Junction ids have a range of their own: junction of node ``n`` (name ``n<n>``) has id
+  ``base + n``, ``base`` one past the highest road or connecting road id. Readers such as
+  CARLA decide whether a road lies in a junction by looking its ``junction`` attribute up
+  among *road* ids; with shared numbers, lanes that end at a junction get no successor there.
+* Road ``<type>`` is ``town`` (the OpenDRIVE 1.4 set, which every reader knows: older ones,
+  such as opendrive2lanelet, reject the 1.7 ``townArterial``...); the HD map road class is
+  kept in a ``<userData code="roadClass">`` of that type.
 * Every junction gets one ``<connection>`` per connecting road, ``contactPoint="start"`` and
   one ``laneLink`` (chapter "Junctions", rule junctions.connection.one_connection_element);
   connecting roads carry road- and lane-level predecessor and successor links. Lanes of roads
@@ -32,7 +39,7 @@ from .xmltext import Block, Element, PlacedBlock, cdata, escape, leaf, sub, writ
 
 CURVATURE_DECIMALS = 15  # an arc's end moves by length^2 / 2 times the curvature's rounding
 DATE = "2025-01-01T00:00:00"  # fixed, so that two runs write the same bytes
-ROAD_TYPES = {"arterial": "townArterial", "collector": "townCollector", "local": "townLocal"}
+ROAD_TYPE = "town"  # OpenDRIVE 1.4 road type: known to every reader (see the module docstring)
 MARK_WIDTH = 0.12  # m
 SIGNAL_SETBACK = 1.0  # m before the road end
 SIGNAL_CATALOGUE = {"country": "DE", "type": "1000001", "subtype": "-1"}  # StVO traffic light
@@ -52,17 +59,19 @@ def opendrive_tree(hd: HDMap) -> Element:
     plans = dict(zip(rids, fillet_plans([reference_line(hd.roads[rid]) for rid in rids]),
                      strict=True))
     connecting = connecting_road_ids(hd)
+    junctions = junction_ids(hd)
     signals, controllers = _traffic_lights(hd, plans)
     root = Element("OpenDRIVE")
     root.append(_header(hd))
     for (rid, plan), view in zip(plans.items(), _plan_views(list(plans.values())), strict=True):
-        root.append(_road(hd, hd.roads[rid], plan, view, signals.get(rid, [])))
+        root.append(_road(hd, hd.roads[rid], plan, view, signals.get(rid, []), junctions))
     connectors = hd.connectors()
     pieces = bezier_pieces(np.array([lane.bezier for lane in connectors]).reshape(-1, 4, 2))
     geometries = _rows(_GEOMETRY, [p[1:6] for p in pieces])
     curves = _rows(_PARAM_POLY3, [(*p.u, *p.v) for p in pieces])
     numbers = _connector_numbers(connectors, pieces)
-    roads = [_connecting_road(hd, lane, connecting[lane.id], geometry, curve, texts)
+    roads = [_connecting_road(hd, lane, connecting[lane.id], junctions[lane.junction], geometry,
+                              curve, texts)
              for lane, geometry, curve, texts in zip(connectors, geometries, curves, numbers,
                                                      strict=True)]
     if roads:  # the root's children: lines one indent deep
@@ -70,7 +79,7 @@ def opendrive_tree(hd: HDMap) -> Element:
     root.extend(controllers)
     for jid in sorted(hd.junctions):
         if hd.junctions[jid].connectors:
-            root.append(_junction(hd, jid, connecting))
+            root.append(_junction(hd, jid, junctions[jid], connecting))
     return root
 
 
@@ -84,6 +93,13 @@ def connecting_road_ids(hd: HDMap) -> dict[str, int]:
     """OpenDRIVE road id of each connector lane: numbered after the roads, junction order."""
     first = max(hd.roads, default=-1) + 1
     return {lane.id: first + k for k, lane in enumerate(hd.connectors())}
+
+
+def junction_ids(hd: HDMap) -> dict[int, int]:
+    """OpenDRIVE junction id of each HD map junction (node): the node id plus one past the
+    highest road or connecting road id, so that no junction id is also a road id."""
+    base = max(hd.roads, default=-1) + 1 + len(hd.connectors())
+    return {node: base + node for node in hd.junctions}
 
 
 def xodr_lane_id(hd: HDMap, lane: Lane) -> int:
@@ -240,8 +256,10 @@ def _road_element(rid: int, name: str, junction: int, pieces: list[Piece]) -> El
                            f' length="{_num(length)}" rule="RHT"')
 
 
-def _road(hd: HDMap, road: Road, pieces: list[Piece], plan_view: str, signals: list) -> Element:
-    """A road between two junctions: its two driving directions as right and left lanes."""
+def _road(hd: HDMap, road: Road, pieces: list[Piece], plan_view: str, signals: list,
+          junctions: dict[int, int]) -> Element:
+    """A road between two junctions (their ids ``junctions``): its two driving directions as
+    right and left lanes."""
     elem = _road_element(road.id, f"r{road.id}", -1, pieces)
     ends = [(tag, node) for tag, node in (("predecessor", road.from_node),
                                           ("successor", road.to_node))
@@ -249,7 +267,7 @@ def _road(hd: HDMap, road: Road, pieces: list[Piece], plan_view: str, signals: l
     if ends:
         link = _sub(elem, "link")
         for tag, node in ends:
-            _leaf(link, tag, elementType="junction", elementId=node)
+            _leaf(link, tag, elementType="junction", elementId=junctions[node])
     _road_type(elem, road.road_class, road.speed)
     elem.children.append(plan_view)
     elem.children.append(_lanes(hd, road))
@@ -259,9 +277,16 @@ def _road(hd: HDMap, road: Road, pieces: list[Piece], plan_view: str, signals: l
 
 
 def _road_type(road: Element, road_class: str, speed: float) -> None:
-    """``<type>`` from the road class, with the class speed limit (chapter "Road type")."""
-    kind = sub(road, "type", f' s="{_ZERO}" type="{ROAD_TYPES.get(road_class, "town")}"')
+    """``<type>`` ``town`` with the class speed limit (chapter "Road type") and the road
+    class as user data."""
+    kind = sub(road, "type", f' s="{_ZERO}" type="{ROAD_TYPE}"')
     kind.children.append(f'<speed max="{_num(float(speed))}" unit="m/s"/>')
+    kind.children.append(_road_class(road_class))
+
+
+def _road_class(road_class: str) -> str:
+    """The HD map road class as ``<userData>`` (chapter "Ancillary data")."""
+    return f'<userData code="roadClass" value="{escape(road_class)}"/>'
 
 
 def _lanes(hd: HDMap, road: Road) -> Block:
@@ -318,9 +343,9 @@ def _connector_numbers(connectors: list[Lane], pieces: list[Piece]) -> list[list
     return [row.split("\t") for row in _rows("\t".join(["{}"] * 6), values)]
 
 
-def _connecting_road(hd: HDMap, lane: Lane, rid: int, geometry: str, curve: str,
+def _connecting_road(hd: HDMap, lane: Lane, rid: int, jid: int, geometry: str, curve: str,
                      numbers: list[str]) -> str:
-    """A connector as a one-lane connecting road inside its junction (chapter "Junctions":
+    """A connector as a one-lane connecting road inside its junction ``jid`` (chapter "Junctions":
     connecting roads), its ``<geometry>`` and ``<paramPoly3>`` lines ``geometry`` and
     ``curve`` and its other ``numbers`` (:func:`_connector_numbers`), linked to its incoming
     and outgoing road and lanes.
@@ -329,10 +354,9 @@ def _connecting_road(hd: HDMap, lane: Lane, rid: int, geometry: str, curve: str,
     element cost a third of the file's time), its lines after the first placed one two-space
     indent deep, as the root's children are: no re-indenting of 30k roads when written."""
     incoming, outgoing = hd.lanes[lane.predecessors[0]], hd.lanes[lane.successors[0]]
-    road_type = ROAD_TYPES.get(lane.road_class, "town")
     length, speed, offset_a, offset_b, width, slope = numbers
     return (
-        f'<road id="{rid}" name="{escape(lane.id)}" junction="{lane.junction}"'
+        f'<road id="{rid}" name="{escape(lane.id)}" junction="{jid}"'
         f' length="{length}" rule="RHT">\n'
         f'    <link>\n'
         f'      <predecessor elementType="road" elementId="{incoming.road}"'
@@ -340,8 +364,9 @@ def _connecting_road(hd: HDMap, lane: Lane, rid: int, geometry: str, curve: str,
         f'      <successor elementType="road" elementId="{outgoing.road}"'
         f' contactPoint="{_contact(outgoing, arriving=False)}"/>\n'
         f'    </link>\n'
-        f'    <type s="{_ZERO}" type="{road_type}">\n'
+        f'    <type s="{_ZERO}" type="{ROAD_TYPE}">\n'
         f'      <speed max="{speed}" unit="m/s"/>\n'
+        f'      {_road_class(lane.road_class)}\n'
         f'    </type>\n'
         f'    <planView>\n'
         f'      {geometry}\n'
@@ -370,10 +395,11 @@ def _connecting_road(hd: HDMap, lane: Lane, rid: int, geometry: str, curve: str,
         f'  </road>')
 
 
-def _junction(hd: HDMap, jid: int, connecting: dict[str, int]) -> Element:
-    """``<junction>``: one connection per connecting road, from its incoming road."""
-    junction = hd.junctions[jid]
-    elem = _elem("junction", id=jid, name=f"n{jid}", type="default")
+def _junction(hd: HDMap, node: int, jid: int, connecting: dict[str, int]) -> Element:
+    """``<junction>`` ``jid`` of node ``node``: one connection per connecting road, from its
+    incoming road."""
+    junction = hd.junctions[node]
+    elem = _elem("junction", id=jid, name=f"n{node}", type="default")
     for k, lane_id in enumerate(junction.connectors):
         incoming = hd.lanes[hd.lanes[lane_id].predecessors[0]]
         # formatted inline (one connection per connector), as _sub and _leaf would
@@ -382,7 +408,7 @@ def _junction(hd: HDMap, jid: int, connecting: dict[str, int]) -> Element:
                                              ' contactPoint="start"')
         connection.children.append(f'<laneLink from="{xodr_lane_id(hd, incoming)}" to="-1"/>')
     if junction.type == "traffic_light":
-        _leaf(elem, "controller", id=jid, type="0", sequence=0)
+        _leaf(elem, "controller", id=node, type="0", sequence=0)
     return elem
 
 
