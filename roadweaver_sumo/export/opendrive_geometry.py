@@ -13,12 +13,25 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from shapely.geometry import LineString
 
 from ..compiled import F8_1D, F8_2D, compiled
 
 DECIMALS = 9  # fixed decimals of every number written to the .xodr
 STRAIGHT = 1e-9  # rad: a vertex turning less than this is no corner (no arc, lines merged)
 MIN_LENGTH = 1e-8  # m: shorter pieces are dropped (the XSD wants length > 0)
+#: m: the tightest arc written. pyxodr (0.1.3) samples arcs every 0.1-0.3 m and fails on arcs
+#: under ~1.5 m radius; cars turn on 5 m or more.
+MIN_RADIUS = 5.0
+#: m: straight line at each end of a plan (see ``_usable``): with ``MIN_RADIUS`` arcs, the
+#: sharpest turn netconvert reads at a road end is 2 MIN_RADIUS END_LINE = 10 m, above its 9 m.
+END_LINE = 1.0
+#: m: how far an arc may leave its corner's vertex, unless MIN_RADIUS needs more: the largest
+#: radius that fits between long segments would cut a gentle corner by metres (a 14 degree
+#: turn between 120 m segments: 7 m), away from the HD map lanes the other files describe.
+MAX_DEVIATION = 0.2
+#: m: how far a corner merged or cut for MIN_RADIUS (``eased``) may move the polyline.
+EASE_TOLERANCE = 1.0
 
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(16)
 
@@ -43,13 +56,17 @@ class Piece(NamedTuple):
 
 def fillet_plans(lines: list[np.ndarray]) -> list[list[Piece]]:
     """Per polyline (two or more points), lines and circular arcs replacing each corner by a
-    tangent arc.
+    tangent arc, every arc of radius ``MIN_RADIUS`` or more and every plan starting and
+    ending with ``END_LINE`` of straight line where its end segments allow.
 
     The result is G1 (continuous heading), starts at the first vertex along the first segment
     and ends at the last vertex along the last segment, so lane ends computed from it match
     the HD map's lane ends (which sit on the end segments' normals) exactly. Each corner's
     tangent length is shared out of its two segments in proportion to ``tan(turn / 2)`` so that
-    neighbouring arcs get equal radii, the largest that fit.
+    neighbouring arcs get equal radii, the largest that fit, but no larger than keeps the arc
+    within ``MAX_DEVIATION`` of the vertex (a tangent of ``MAX_DEVIATION / tan(turn / 4)``) or
+    than ``MIN_RADIUS`` needs. Polylines whose corners leave a smaller radius are eased first
+    (:func:`eased`): corners merged or cut until every radius fits.
 
     All polylines at once: every figure is computed with the same operations, in the same
     order, as one polyline and one segment at a time (same bits), without a dozen small numpy
@@ -58,6 +75,17 @@ def fillet_plans(lines: list[np.ndarray]) -> list[list[Piece]]:
     if not lines:
         return []
     pts, owner = _corners(*_stacked(lines))
+    plans, radius = _fillets(pts, owner, len(lines))
+    bounds = np.searchsorted(owner, np.arange(len(lines) + 1))
+    for road in np.flatnonzero(radius < MIN_RADIUS).tolist():
+        line = eased(pts[bounds[road]:bounds[road + 1]])
+        plans[road] = _fillets(*_corners(line, np.zeros(len(line), int)), 1)[0][0]
+    return plans
+
+
+def _fillets(pts: np.ndarray, owner: np.ndarray, count: int):
+    """The plans of ``count`` stacked polylines (``pts`` cleaned by :func:`_corners`, polyline
+    index ``owner``) and each one's smallest arc radius (inf without corners)."""
     seg = np.diff(pts, axis=0)
     inside = owner[1:] == owner[:-1]  # steps within a polyline: its segments
     seg, seg_owner, seg_start = seg[inside], owner[1:][inside], pts[:-1][inside]
@@ -68,9 +96,13 @@ def fillet_plans(lines: list[np.ndarray]) -> list[list[Piece]]:
     weight = np.where(corner, np.tan(np.abs(turn) / 2.0), 0.0)  # of each segment's end vertex
     at_start, at_end = np.append(0.0, weight), np.append(weight, 0.0)  # per segment
     pair = at_start + at_end
-    scale = np.divide(lengths, pair, out=np.full_like(lengths, np.inf), where=pair > 0)
-    with np.errstate(invalid="ignore"):  # inf * 0 where no corner: not used
-        tangent = np.where(corner, np.minimum(scale[:-1], scale[1:]) * weight, 0.0)
+    ends = np.append(True, ~corner), np.append(~corner, True)  # first, last of a polyline
+    scale = np.divide(_usable(lengths, *ends), pair, out=np.full_like(lengths, np.inf),
+                      where=pair > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):  # inf * 0 where no corner: not used
+        cap = np.maximum(MAX_DEVIATION / np.tan(np.abs(turn) / 4.0), MIN_RADIUS * weight)
+        tangent = np.where(corner, np.minimum(np.minimum(scale[:-1], scale[1:]) * weight, cap),
+                           0.0)
     cut_start, cut_end = np.append(0.0, tangent), np.append(tangent, 0.0)
     start = (seg_start + cut_start[:, None] * seg / lengths[:, None]).tolist()
     run = (lengths - cut_start - cut_end).tolist()
@@ -79,8 +111,10 @@ def fillet_plans(lines: list[np.ndarray]) -> list[list[Piece]]:
         radius = tangent / weight
         arc_length = (radius * np.abs(turn)).tolist()
         curvature = np.copysign(1.0 / radius, turn).tolist()
+    smallest = np.full(count, np.inf)
+    np.minimum.at(smallest, seg_owner[1:][corner], radius[corner])
     arc_start, heading, corner = arc_start.tolist(), heading.tolist(), corner.tolist()
-    plans: list[list[Piece]] = [[] for _ in lines]
+    plans: list[list[Piece]] = [[] for _ in range(count)]
     previous = -1
     for i, road in enumerate(seg_owner.tolist()):
         if road != previous:
@@ -90,7 +124,97 @@ def fillet_plans(lines: list[np.ndarray]) -> list[list[Piece]]:
             arc = Piece("arc", s, *arc_start[i], heading[i], arc_length[i],
                         curvature=curvature[i])
             s = _append(pieces, arc)
-    return plans
+    return plans, smallest
+
+
+def _usable(lengths: np.ndarray, first: np.ndarray, last: np.ndarray) -> np.ndarray:
+    """Length of each segment that its corners' tangents may take: all of an inner segment,
+    an end segment (``first`` or ``last`` of its polyline) less ``END_LINE`` (less half of it
+    if shorter), so that a plan begins and ends straight. A reader that samples arcs in steps
+    (netconvert: 2 m) otherwise ends a road with a short chord that turns against the one
+    before it, and reads a tight turn there."""
+    return np.where(first | last, lengths - np.minimum(END_LINE, lengths / 2.0), lengths)
+
+
+def eased(points: np.ndarray) -> np.ndarray:
+    """A cleaned polyline (:func:`_corners`) whose fillets all get ``MIN_RADIUS`` or more
+    where that can be done by merging or cutting corners, with the same end points and end
+    directions.
+
+    While some corner's fillet is tighter, the segment that limits it goes: two corners that
+    turn the same way become one at the crossing of the segments before and after (the
+    tangent arc of that corner has room for a larger radius), and a corner of an S-bend is cut
+    (its neighbours joined), each only where no vertex of ``points`` ends up farther than
+    ``EASE_TOLERANCE`` from the new polyline. The end segments' directions stay: an end
+    segment may be lengthened, never turned. Corners that nothing can help keep their radius.
+    """
+    original = LineString(points)
+    pts = [np.asarray(p, float) for p in points]
+    while len(pts) > 3:
+        better = None
+        for vertex, segment in _tight_corners(np.array(pts)):
+            other = vertex + (1 if segment == vertex else -1)  # the limiting segment's far end
+            for candidate in (_merged(pts, segment), _cut(pts, vertex), _cut(pts, other)):
+                if candidate and _within(original, candidate):
+                    better = candidate
+                    break
+            if better:
+                break
+        if not better:
+            break
+        pts = better
+    return np.array(pts)
+
+
+def _within(original: LineString, candidate: list[np.ndarray]) -> bool:
+    """Whether ``candidate`` and ``original`` are within ``EASE_TOLERANCE`` of each other."""
+    return original.hausdorff_distance(LineString(candidate)) <= EASE_TOLERANCE
+
+
+def _tight_corners(pts: np.ndarray) -> list[tuple[int, int]]:
+    """(vertex, limiting segment) of every corner whose fillet would be tighter than
+    ``MIN_RADIUS``, tightest first. Segment ``k`` runs from vertex ``k`` to ``k + 1``."""
+    seg = np.diff(pts, axis=0)
+    lengths = np.hypot(seg[:, 0], seg[:, 1])
+    turn = np.angle(np.exp(1j * np.diff(np.arctan2(seg[:, 1], seg[:, 0]))))
+    weight = np.tan(np.abs(turn) / 2.0)
+    first = np.arange(len(lengths)) == 0
+    with np.errstate(divide="ignore"):  # a segment between two straight vertices: no limit
+        scale = _usable(lengths, first, first[::-1]) / (np.append(0.0, weight)
+                                                         + np.append(weight, 0.0))
+    limit = np.where(scale[:-1] <= scale[1:], np.arange(len(weight)), np.arange(len(weight)) + 1)
+    radius = np.minimum(scale[:-1], scale[1:])
+    order = np.argsort(radius, kind="stable")
+    return [(int(v) + 1, int(limit[v])) for v in order if radius[v] < MIN_RADIUS]
+
+
+def _merged(pts: list[np.ndarray], segment: int) -> list[np.ndarray] | None:
+    """``pts`` with segment ``segment`` (clamped to an inner one) removed and its two corners
+    made one at the crossing of its neighbour segments; None where the two turn different
+    ways or together by half a turn or more (no crossing ahead)."""
+    k = min(max(segment, 1), len(pts) - 3)
+    a, b = pts[k] - pts[k - 1], pts[k + 2] - pts[k + 1]
+    mid = pts[k + 1] - pts[k]
+    cross_a, cross_b, cross_ab = _cross2(a, mid), _cross2(mid, b), _cross2(a, b)
+    if cross_a * cross_b <= 0.0 or cross_a * cross_ab <= 0.0:
+        return None
+    ahead = _cross2(pts[k + 1] - pts[k], b) / cross_ab  # along a from pts[k]
+    crossing = pts[k] + ahead * a
+    if np.dot(crossing - pts[k - 1], a) <= 0.0 or np.dot(pts[k + 2] - crossing, b) <= 0.0:
+        return None
+    return [*pts[:k], crossing, *pts[k + 2:]]
+
+
+def _cut(pts: list[np.ndarray], vertex: int) -> list[np.ndarray] | None:
+    """``pts`` without the corner at ``vertex``, its neighbours joined; None for the first
+    two and last two vertices (their segments set the end directions)."""
+    if not 2 <= vertex <= len(pts) - 3:
+        return None
+    return [*pts[:vertex], *pts[vertex + 1:]]
+
+
+def _cross2(a: np.ndarray, b: np.ndarray) -> float:
+    return float(a[0] * b[1] - a[1] * b[0])
 
 
 def _stacked(lines: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
