@@ -13,6 +13,8 @@ import os
 from collections.abc import Callable, Sequence
 from typing import TypeVar
 
+from . import children
+
 T = TypeVar("T")
 U = TypeVar("U")
 
@@ -28,26 +30,34 @@ def beside(in_child: Callable[[], T], here: Callable[[], U], *, name: str) -> tu
     """``(here(), in_child())``, with ``in_child`` run by a forked child (``name`` says what it
     does, in error messages) while this process runs ``here``; both in turn where a child
     cannot be forked. The child is always collected before an error is raised; an error of
-    ``here`` is raised first."""
+    ``here`` is raised first. When this process is interrupted (Ctrl-C, SIGTERM: anything not
+    an ``Exception``) the child is killed rather than waited for; it also dies with this
+    process (``children.die_with_parent``)."""
     if not can_fork():
         return here(), in_child()
     context = multiprocessing.get_context("fork")
     receive, send = context.Pipe(duplex=False)
-    child = context.Process(target=_run_in_child, args=(in_child, send, name), name=name)
+    child = context.Process(target=_run_in_child, args=(in_child, send, name, os.getpid()),
+                            name=name)
     child.start()
     send.close()
     failure: BaseException | None = None
     try:
-        mine = here()
-    except BaseException as exc:  # noqa: BLE001 - the child is collected before raising
-        failure = exc
-    try:
-        ok, theirs = receive.recv()
-    except EOFError:
+        try:
+            mine = here()
+        except Exception as exc:  # noqa: BLE001 - the child is collected before raising
+            failure = exc
+        try:
+            ok, theirs = receive.recv()
+        except EOFError:
+            child.join()
+            ok, theirs = False, RuntimeError(f"the process {name} died (exit code {child.exitcode})")
+    except BaseException:
+        child.kill()
+        raise
+    finally:
         child.join()
-        ok, theirs = False, RuntimeError(f"the process {name} died (exit code {child.exitcode})")
-    child.join()
-    receive.close()
+        receive.close()
     if failure is not None:
         raise failure
     if not ok:
@@ -55,9 +65,10 @@ def beside(in_child: Callable[[], T], here: Callable[[], U], *, name: str) -> tu
     return mine, theirs
 
 
-def _run_in_child(job: Callable, send, name: str) -> None:
+def _run_in_child(job: Callable, send, name: str, parent_pid: int) -> None:
     """Send ``(True, job())`` or ``(False, the exception)`` (its text if it cannot be
     pickled)."""
+    children.forget_inherited(parent_pid)
     try:
         outcome = (True, job())
     except BaseException as exc:  # noqa: BLE001 - handed to the parent, which raises it

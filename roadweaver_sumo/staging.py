@@ -1,8 +1,15 @@
-"""Outputs appear complete or not at all: build in a hidden sibling folder, then move into place."""
+"""Outputs appear complete or not at all: build in a hidden sibling folder, then move into place.
+
+The sibling is ``.NAME.partial-PID-XXXX``, PID the building process: a run killed outright
+(SIGKILL, a power cut) cannot remove it, so the next run on the same output removes every
+such folder whose process is gone. While a folder is staged, the run's temporary files go
+inside it too (:func:`scratch_dir`), so that they leave with it.
+"""
 
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Iterator
@@ -10,6 +17,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from .errors import RoadweaverError
+
+_staged: list[Path] = []  # folders being built by this process, the innermost last
 
 
 @contextmanager
@@ -20,20 +29,71 @@ def staged_folder(out_dir: Path, force: bool) -> Iterator[Path]:
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise RoadweaverError(f"output path {out_dir} exists and is not a folder")
+    parent = out_dir.parent if str(out_dir.parent) else Path(".")
+    if parent.is_dir():
+        remove_stale(out_dir)
     if out_dir.exists() and not force:
         raise RoadweaverError(f"output folder {out_dir} already exists; use --force to replace it")
-    parent = out_dir.parent if str(out_dir.parent) else Path(".")
     try:
         parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.partial-", dir=parent))
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.partial-{os.getpid()}-", dir=parent))
     except OSError as exc:
         raise RoadweaverError(f"cannot write to {parent}: {exc.strerror or exc}") from None
+    _staged.append(tmp)
     try:
         yield tmp
         _move_into_place(tmp, out_dir, force)
     finally:
+        _staged.remove(tmp)
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
+
+
+def scratch_dir() -> Path | None:
+    """Where temporary files go: inside the folder this process is staging, so that a killed
+    run leaves them only there (removed by the next run); None (the system's temporary
+    folder) when nothing is staged."""
+    return _staged[-1] if _staged else None
+
+
+def remove_stale(out_dir: Path) -> list[Path]:
+    """Remove what killed runs on ``out_dir`` left beside it: ``.NAME.partial-PID-*`` folders,
+    and ``.NAME.old-PID`` (the previous output, moved aside while the new one moved in; put
+    back if ``out_dir`` is missing). Only where process PID is gone. Returns what was
+    removed or put back."""
+    out_dir = Path(out_dir)
+    parent = out_dir.parent if str(out_dir.parent) else Path(".")
+    pattern = re.compile(rf"\.{re.escape(out_dir.name)}\.(partial|old)-(\d+)(-.*)?")
+    handled: list[Path] = []
+    try:
+        siblings = sorted(parent.iterdir())
+    except OSError:  # unreadable: creating the staging folder there says why
+        return handled
+    for path in siblings:
+        match = pattern.fullmatch(path.name)
+        if not match or not path.is_dir() or _alive(int(match.group(2))):
+            continue
+        if match.group(1) == "old" and not out_dir.exists():
+            path.rename(out_dir)
+        else:
+            shutil.rmtree(path, ignore_errors=True)
+        handled.append(path)
+    return handled
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` exists (one of another user counts as alive)."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    except OverflowError:
+        return False
+    return True
 
 
 def _move_into_place(tmp: Path, out_dir: Path, force: bool) -> None:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import sumo
 
+from . import children
 from .errors import RoadweaverError
 
 SUMO_HOME = Path(sumo.SUMO_HOME)
@@ -63,8 +64,9 @@ def child_env() -> dict:
 
 
 def run(args: list[str], cwd: Path, what: str) -> subprocess.CompletedProcess:
-    """Run a SUMO program in ``cwd``; on failure raise a one-line error quoting its last message."""
-    proc = subprocess.run(args, cwd=cwd, env=child_env(), capture_output=True, text=True, check=False)
+    """Run a SUMO program in ``cwd`` (a child that dies with this process: ``children``); on
+    failure raise a one-line error quoting its last message."""
+    proc = children.run(args, cwd=cwd, env=child_env())
     if proc.returncode != 0:
         lines = [ln.strip() for ln in (proc.stderr + proc.stdout).splitlines() if ln.strip()]
         errors = [ln for ln in lines if ln.startswith("Error:")]

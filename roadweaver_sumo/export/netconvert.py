@@ -15,6 +15,7 @@ from pathlib import Path
 from string import Template
 
 from ..errors import RoadweaverError
+from ..staging import scratch_dir
 from ..sumo_tools import binary, run, strip_generated_comment
 from .waiting_points import crowded_connections, wait_at_stop_line
 
@@ -61,8 +62,10 @@ def fill_template(template: str) -> str:
 
 def _run(out_dir: Path) -> None:
     """Run netconvert in ``out_dir``; on failure quote its first ``Error:`` line, which says
-    what is wrong (its last line is only "Quitting (on error).")."""
-    with tempfile.TemporaryDirectory() as tmp:
+    what is wrong (its last line is only "Quitting (on error).").
+    The log's folder is in the staging folder when there is one, so a killed run leaves
+    nothing elsewhere."""
+    with tempfile.TemporaryDirectory(prefix="netconvert-", dir=scratch_dir()) as tmp:
         log = Path(tmp) / "netconvert.log"
         args = [binary("netconvert"), "-c", CONFIG_NAME, "--error-log", str(log)]
         try:

@@ -11,11 +11,13 @@ import logging
 import multiprocessing
 import os
 import re
+import signal
 import socket
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 
+from .. import children
 from ..errors import RoadweaverError
 
 ENGINES = ("local", "ray")
@@ -89,9 +91,12 @@ def run_jobs(
 
 def _run_local(fn: Callable, jobs: Sequence, on_result: Callable, workers: int) -> None:
     """A process pool; 'spawn' so workers start clean whatever threads the caller runs (a forked
-    copy of a process with threads can deadlock)."""
+    copy of a process with threads can deadlock). When this process is interrupted (Ctrl-C,
+    SIGTERM) or killed, the workers die, and with them their children (:func:`_worker_start`);
+    the scenarios they were building are in the caller's staging folder."""
     context = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=min(workers, max(len(jobs), 1)), mp_context=context)
+    pool = ProcessPoolExecutor(max_workers=min(workers, max(len(jobs), 1)), mp_context=context,
+                               initializer=_worker_start, initargs=(os.getpid(),))
     try:
         pending = {pool.submit(fn, job) for job in jobs}
         while pending:
@@ -100,8 +105,19 @@ def _run_local(fn: Callable, jobs: Sequence, on_result: Callable, workers: int) 
                 on_result(future.result())
     except BrokenProcessPool:
         raise RoadweaverError("a worker process died (out of memory?)") from None
+    except BaseException:
+        for worker in multiprocessing.active_children():
+            worker.kill()
+        raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _worker_start(parent_pid: int) -> None:
+    """In each pool worker: die with the parent, and leave a terminal's Ctrl-C to it (it kills
+    the workers), so that no worker prints a traceback of its own."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    children.die_with_parent(parent_pid)
 
 
 def _run_ray(fn: Callable, jobs: Sequence, on_result: Callable, workers, address) -> None:

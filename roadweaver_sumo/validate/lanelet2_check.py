@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 from lxml import etree
 
+from .. import children
 from ..export.lanelet2 import LANE_TAG, latlon_to_local
 
 ROUTE_SUCCESS_TARGET = 0.99
@@ -37,8 +38,7 @@ def check_lanelet2(osm: Path, origin: tuple[float, float], *, pairs: int = 1000,
     cmd = [sys.executable, "-m", __name__, str(osm), repr(float(origin[0])), repr(float(origin[1])),
            "--pairs", str(pairs), "--seed", str(seed)]
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout,
-                              check=False)
+        proc = children.run(cmd, timeout=timeout)
     except subprocess.TimeoutExpired:
         return {"ok": False, "error": f"lanelet2 check took longer than {timeout:g} s"}
     if proc.returncode < 0:

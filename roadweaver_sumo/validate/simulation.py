@@ -5,8 +5,9 @@ libsumo keeps one simulation per process and a second ``start`` silently replace
 child processes: one simulates, one answers the routing queries. A subprocess rather than a multiprocessing pool: a crash inside libsumo then ends
 the run with an error at once (a pool would silently respawn the worker and wait for its timeout),
 and nothing depends on how the caller's ``__main__`` can be re-imported. SUMO's console chatter,
-the statistic output and the result go to a temporary folder, never into the scenario folder.
-Gridlocked runs crawl (~30 sim-s per wall-s), hence the wall-clock cap.
+the statistic output and the result go to a temporary folder, never into the scenario folder
+(inside the staging folder of a scenario being made: ``staging.scratch_dir``). The children die
+with this process (``children``). Gridlocked runs crawl (~30 sim-s per wall-s), hence the wall-clock cap.
 """
 
 from __future__ import annotations
@@ -25,8 +26,10 @@ from pathlib import Path
 import numpy as np
 from lxml import etree
 
+from .. import children
 from ..errors import RoadweaverError
 from ..scenario.sumocfg import SUMOCFG_FILE
+from ..staging import scratch_dir
 from ..sumo_tools import child_env
 
 VEHICLE_TYPE = "DEFAULT_VEHTYPE"  # SUMO's default car (vClass passenger)
@@ -70,7 +73,7 @@ def started_simulation(
         raise RoadweaverError(f"simulation: {cfg} not found")
     started = time.perf_counter()
     hard_limit = wall_cap_s + HARD_TIMEOUT_MARGIN_S
-    with tempfile.TemporaryDirectory(prefix="roadweaver-sim-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="roadweaver-sim-", dir=scratch_dir()) as tmp:
         common = {"cfg": str(cfg), "wall_cap_s": wall_cap_s, "routing_tasks": routing_tasks,
                   "seed": seed}  # fmt: skip
         kinds = ("simulate", "route") if split_routing else ("simulate and route",)
@@ -102,7 +105,7 @@ class _Child:
         folder.mkdir()
         self.log, self.result_file = folder / "sumo.log", folder / "result.json"
         with self.log.open("w") as out:
-            self.proc = subprocess.Popen(
+            self.proc = children.popen(
                 [sys.executable, "-m", __name__, json.dumps({**job, "tmp": str(folder)})],
                 stdout=out, stderr=subprocess.STDOUT, env=child_env(),
             )  # fmt: skip
@@ -126,9 +129,7 @@ class _Child:
         return payload["results"], payload["timing"]
 
     def kill(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait()
+        children.kill(self.proc)
 
 
 def _main(job: dict) -> None:

@@ -1,0 +1,172 @@
+"""Child processes that never outlive the run that started them.
+
+Every program a run starts (netconvert, randomTrips, duarouter, the libsumo validators, the
+lanelet2 check) goes through :func:`popen` or :func:`run`, which
+
+* start it in a session of its own, so that killing its process group also ends whatever it
+  started, and so that a terminal's Ctrl-C reaches only this process, which decides what ends;
+* ask Linux to SIGKILL it when its parent dies (``PR_SET_PDEATHSIG``): even a SIGKILL of this
+  process, which runs no clean-up code at all, takes the children along;
+* remember it while it runs, so that the SIGTERM and SIGINT handlers of
+  :func:`handle_termination` kill every live child before the interrupted run unwinds (worker
+  threads that wait for a child return at once, and the staging folder can be removed).
+
+Linux sends the parent-death signal when the *thread* that started the child ends, so a child
+must be waited for by the thread that started it (every caller here does). Forked workers
+(``forked.py``) and pool workers (``suite/engines.py``) are not started through ``popen``; they
+call :func:`die_with_parent` themselves.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import subprocess
+import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from functools import partial
+
+PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
+
+
+class Stopped(KeyboardInterrupt):
+    """The run was stopped by a signal (SIGINT or SIGTERM). A KeyboardInterrupt, so every
+    clean-up that handles Ctrl-C handles a SIGTERM the same way."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _prctl():
+    """libc's ``prctl``, looked up once: a forked child calls it before ``exec``, where as
+    little as possible should run."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        fn = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+    fn.argtypes = [ctypes.c_int, ctypes.c_ulong]
+    return fn
+
+
+_PRCTL = _prctl()
+_live: set[subprocess.Popen] = set()
+_stopping: int | None = None  # the signal that stopped this process, once one arrived
+_main_in_popen = False  # the main thread is between Popen and remembering the child
+
+
+def die_with_parent(parent_pid: int | None = None) -> None:
+    """Have Linux SIGKILL this process when its parent dies; at once if the parent (whose pid
+    was ``parent_pid`` before the fork) died already. Does nothing off Linux."""
+    if _PRCTL is None:
+        return
+    _PRCTL(PR_SET_PDEATHSIG, signal.SIGKILL)
+    if parent_pid is not None and os.getppid() != parent_pid:
+        os.kill(os.getpid(), signal.SIGKILL)
+
+
+def popen(args: list[str], **kwargs) -> subprocess.Popen:
+    """``subprocess.Popen(args, **kwargs)`` in a session of its own that dies with this
+    process; raises :class:`Stopped` (the child killed) when this process is being stopped."""
+    global _main_in_popen
+    main = threading.current_thread() is threading.main_thread()
+    _live.difference_update([p for p in list(_live) if p.returncode is not None])
+    if main:  # a signal now must not raise between the fork and remembering the child
+        _main_in_popen = True
+    try:
+        proc = subprocess.Popen(args, start_new_session=True,
+                                preexec_fn=partial(die_with_parent, os.getpid()),  # noqa: PLW1509 - prctl only
+                                **kwargs)
+        _live.add(proc)
+    finally:
+        if main:
+            _main_in_popen = False
+    if _stopping is not None:
+        kill(proc)
+        raise Stopped(_stopping)
+    return proc
+
+
+def run(args: list[str], *, timeout: float | None = None, **kwargs) -> subprocess.CompletedProcess:
+    """``subprocess.run(args, capture_output=True, text=True, **kwargs)`` through :func:`popen`.
+    On a time-out (``subprocess.TimeoutExpired`` is raised) or any other exception while
+    waiting, the child's whole process group is killed first."""
+    proc = popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kwargs)
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except BaseException:
+        kill(proc)
+        raise
+    finally:
+        _live.discard(proc)
+    return subprocess.CompletedProcess(args, proc.returncode, out, err)
+
+
+def kill(proc: subprocess.Popen) -> None:
+    """SIGKILL ``proc``'s process group (if it has not been collected yet) and collect it."""
+    _kill_group(proc)
+    proc.wait()
+    _live.discard(proc)
+
+
+def _kill_group(proc: subprocess.Popen) -> None:
+    """Send SIGKILL, never wait: a signal handler may run while this thread holds the child's
+    wait lock. An uncollected child's pid cannot have been reused."""
+    if proc.returncode is None:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+
+
+def stop_children() -> None:
+    """Kill every live child's process group; their waiting threads then collect them."""
+    for proc in list(_live):
+        _kill_group(proc)
+
+
+def _on_signal(signum: int, frame) -> None:
+    """Kill the children, then raise :class:`Stopped` in the main thread, once: a second
+    signal must not interrupt the clean-up the first one started. Inside :func:`popen`, that
+    raises it after remembering its child."""
+    global _stopping
+    first = _stopping is None
+    _stopping = signum
+    stop_children()
+    if first and not _main_in_popen:
+        raise Stopped(signum)
+
+
+@contextmanager
+def handle_termination() -> Iterator[None]:
+    """While the block runs (in the main thread), SIGTERM and SIGINT kill every child and raise
+    :class:`Stopped`; the previous handlers come back afterwards."""
+    global _stopping
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {s: signal.signal(s, _on_signal) for s in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        _stopping = None
+
+
+def forget_inherited(parent_pid: int) -> None:
+    """In a forked child of ``parent_pid``: the parent's children and signal handlers are not
+    this process's; SIGTERM ends it, SIGINT raises KeyboardInterrupt, and it dies with its
+    parent."""
+    global _stopping
+    _live.clear()
+    _stopping = None
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    die_with_parent(parent_pid)
