@@ -6,7 +6,10 @@ lanelet2 check) goes through :func:`popen` or :func:`run`, which
 * start it in a session of its own, so that killing its process group also ends whatever it
   started, and so that a terminal's Ctrl-C reaches only this process, which decides what ends;
 * ask Linux to SIGKILL it when its parent dies (``PR_SET_PDEATHSIG``): even a SIGKILL of this
-  process, which runs no clean-up code at all, takes the children along;
+  process, which runs no clean-up code at all, takes the children along. That signal is not
+  inherited, so a child's own children (randomTrips can start duarouter) would outlive it: a
+  watchdog process in a session of its own learns each child's process group and kills the
+  groups still listed when this process is gone (``_WATCHDOG``);
 * remember it while it runs, so that the SIGTERM and SIGINT handlers of
   :func:`handle_termination` kill every live child before the interrupted run unwinds (worker
   threads that wait for a child return at once, and the staging folder can be removed).
@@ -56,6 +59,8 @@ def _prctl():
 
 _PRCTL = _prctl()
 _live: set[subprocess.Popen] = set()
+_watchdog: subprocess.Popen | None = None  # of this process (a forked child starts its own)
+_watchdog_lock = threading.Lock()
 _stopping: int | None = None  # the signal that stopped this process, once one arrived
 _main_in_popen = False  # the main thread is between Popen and remembering the child
 
@@ -75,7 +80,8 @@ def popen(args: list[str], **kwargs) -> subprocess.Popen:
     process; raises :class:`Stopped` (the child killed) when this process is being stopped."""
     global _main_in_popen
     main = threading.current_thread() is threading.main_thread()
-    _live.difference_update([p for p in list(_live) if p.returncode is not None])
+    for done in [p for p in list(_live) if p.returncode is not None]:
+        _forget(done)
     if main:  # a signal now must not raise between the fork and remembering the child
         _main_in_popen = True
     try:
@@ -83,6 +89,7 @@ def popen(args: list[str], **kwargs) -> subprocess.Popen:
                                 preexec_fn=partial(die_with_parent, os.getpid()),  # noqa: PLW1509 - prctl only
                                 **kwargs)
         _live.add(proc)
+        _tell_watchdog(f"+{proc.pid}")
     finally:
         if main:
             _main_in_popen = False
@@ -102,16 +109,31 @@ def run(args: list[str], *, timeout: float | None = None, **kwargs) -> subproces
     except BaseException:
         kill(proc)
         raise
-    finally:
-        _live.discard(proc)
+    _forget(proc)
     return subprocess.CompletedProcess(args, proc.returncode, out, err)
+
+
+def wait(proc: subprocess.Popen, timeout: float | None = None) -> int:
+    """``proc.wait(timeout)``, then forget the child (``subprocess.TimeoutExpired`` leaves it
+    running and remembered)."""
+    code = proc.wait(timeout)
+    _forget(proc)
+    return code
 
 
 def kill(proc: subprocess.Popen) -> None:
     """SIGKILL ``proc``'s process group (if it has not been collected yet) and collect it."""
     _kill_group(proc)
     proc.wait()
-    _live.discard(proc)
+    _forget(proc)
+
+
+def _forget(proc: subprocess.Popen) -> None:
+    """A collected child: neither the handlers nor the watchdog may signal its group (the pid
+    is free to be reused)."""
+    if proc in _live:
+        _live.discard(proc)
+        _tell_watchdog(f"-{proc.pid}")
 
 
 def _kill_group(proc: subprocess.Popen) -> None:
@@ -121,6 +143,37 @@ def _kill_group(proc: subprocess.Popen) -> None:
         try:
             os.killpg(proc.pid, signal.SIGKILL)
         except (ProcessLookupError, PermissionError):
+            pass
+
+
+# The watchdog: '+PGID' and '-PGID' lines on stdin; at end of input (its parent is gone, however
+# it ended) it kills the groups still listed. Its own session: a kill of the parent's process
+# group does not reach it.
+_WATCHDOG = """
+import os, signal, sys
+signal.signal(signal.SIGINT, signal.SIG_IGN)
+groups = set()
+for line in sys.stdin:
+    (groups.add if line[0] == "+" else groups.discard)(int(line[1:]))
+for pgid in groups:
+    try:
+        os.killpg(pgid, signal.SIGKILL)
+    except OSError:
+        pass
+"""
+
+
+def _tell_watchdog(line: str) -> None:
+    """Send ``line`` to this process's watchdog, started on first use."""
+    global _watchdog
+    with _watchdog_lock:
+        if _watchdog is None:
+            _watchdog = subprocess.Popen([sys.executable, "-c", _WATCHDOG], stdin=subprocess.PIPE,
+                                         stdout=subprocess.DEVNULL, start_new_session=True)
+        try:
+            _watchdog.stdin.write(f"{line}\n".encode())
+            _watchdog.stdin.flush()
+        except OSError:  # it died (killed by hand): the parent-death signal still holds
             pass
 
 
@@ -163,9 +216,13 @@ def forget_inherited(parent_pid: int) -> None:
     """In a forked child of ``parent_pid``: the parent's children and signal handlers are not
     this process's; SIGTERM ends it, SIGINT raises KeyboardInterrupt, and it dies with its
     parent."""
-    global _stopping
+    global _stopping, _watchdog, _watchdog_lock
     _live.clear()
+    _watchdog_lock = threading.Lock()  # another thread may have held it at the fork
     _stopping = None
+    if _watchdog is not None:  # the parent's: its end of the pipe must close with the parent
+        _watchdog.stdin.close()
+        _watchdog = None
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         signal.signal(signal.SIGINT, signal.default_int_handler)

@@ -112,7 +112,7 @@ class _Child:
 
     def result(self, cfg: Path, deadline: float, wall_cap_s: float) -> tuple[dict, dict]:
         try:
-            self.proc.wait(timeout=max(0.0, deadline - time.perf_counter()))
+            children.wait(self.proc, timeout=max(0.0, deadline - time.perf_counter()))
         except subprocess.TimeoutExpired:
             raise RoadweaverError(
                 f"simulation of {cfg} did not return within {wall_cap_s:.0f} s "
