@@ -1,34 +1,111 @@
-"""Command line: ``roadweaver-sumo make-scenario`` and ``roadweaver-sumo validate``.
+"""Command line: ``roadweaver-sumo make-scenario``, ``validate``, ``evaluate``, ``data prepare``,
+``train``, ``make-suite``, ``check-suite`` and ``render``.
 
-Every user error ends in one line on stderr, ``roadweaver-sumo: error: ...``, and a non-zero exit
-(2 for bad input, 1 for a scenario that fails its thresholds); never a traceback.
+Every argument is checked before any work starts, and ``--help`` states its range and default.
+Every run ends in one of four ways, never with a traceback: 0; 1 and one line on stderr for a
+scenario or suite that fails its checks; 2 and one line ``roadweaver-sumo: error: ...`` for bad
+input (or a failed external tool); 3 and one line naming a log file with the traceback, for a
+bug. SIGTERM is handled like Ctrl-C: every child process is killed and nothing half-written
+is left (``children``, ``staging``).
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import importlib.util
 import json
+import math
+import os
+import signal
 import sys
+import tempfile
 import time
+import traceback
 import warnings
 from pathlib import Path
 
-from . import __version__
+from . import __version__, children
 from .allocator import keep_freed_memory
 from .errors import RoadweaverError
-from .spec import SKELETONS, STYLES, ScenarioSpec, parse_size
+from .spec import (
+    MAX_DENSITY,
+    MAX_DURATION_S,
+    MAX_SEED,
+    MAX_SIDE_M,
+    MAX_VEHICLES,
+    MIN_DURATION_S,
+    MIN_ROAD_NODES,
+    MIN_SIDE_M,
+    SKELETONS,
+    STYLES,
+    ScenarioSpec,
+    parse_size,
+)
 
 PROG = "roadweaver-sumo"
 EXIT_FAILED_CHECKS = 1
 EXIT_BAD_INPUT = 2
+EXIT_INTERNAL_ERROR = 3
+# data prepare: a tile is cut from one town, and its raster is what the models train on
+MIN_TILE_M, MAX_TILE_M = 200.0, 20_000.0
+MIN_CELLS, MAX_CELLS = 8, 512  # the VQ-VAE downsamples by 8
+# train
+MAX_STEPS, MAX_BATCH, MAX_LR = 10_000_000, 4096, 1.0
+MAX_WORKERS = 256  # suite.engines.MAX_WORKERS, stated here for --help
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse that reports a usage error in one line instead of usage text plus error."""
+    """argparse that reports a usage error in one line instead of usage text plus error, and
+    shows defaults in ``--help``."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str):
         raise RoadweaverError(message)
+
+
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """``(default: X)`` after every option with a default worth stating (not None or False)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        if action.default is None or action.default is False or not action.help:
+            return action.help or ""
+        return super()._get_help_string(action)
+
+
+def _number(kind: type, low: float, high: float, *, above: bool = False):
+    """An argparse type: a finite ``kind`` (int or float) from ``low`` (excluded with
+    ``above``) to ``high``; anything else is a one-line error that states the range."""
+    what = "a whole number" if kind is int else "a number"
+    if math.isinf(high):
+        span = f"{'>' if above else '>='} {low:g} and finite"
+    else:
+        span = f"> {low:g} and <= {high:g}" if above else f"{low:g}..{high:g}"
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what} ({span})") from None
+        if not math.isfinite(value) or value < low or value > high or (above and value == low):
+            raise argparse.ArgumentTypeError(f"must be {span}, got {text}")
+        return value
+
+    return parse
+
+
+def _choices(names) -> str:
+    return "{" + ",".join(names) + "}"
+
+
+SEED = _number(int, 0, MAX_SEED)
+SEED_HELP = f"random seed, 0..{MAX_SEED}"
+SIZE_HELP = (f"map size in metres, 2000 or 3000x2000; each side {MIN_SIDE_M:g}..{MAX_SIDE_M:g}")
+VEHICLES_HELP = f"vehicles, 1..{MAX_VEHICLES}"
+DURATION_HELP = (f"demand horizon in seconds, {MIN_DURATION_S:g}..{MAX_DURATION_S:g} (a week)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -37,13 +114,17 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     make = sub.add_parser("make-scenario", help="generate a map and a validated SUMO scenario")
-    make.add_argument("--density", type=float, required=True, help="road nodes per km²")
-    make.add_argument("--vehicles", type=int, required=True, help="number of vehicles")
-    make.add_argument("--size", default="2000", help="map size in metres: 2000 or 3000x2000")
-    make.add_argument("--seed", type=int, default=0)
-    make.add_argument("--style", default="mixed", help=f"one of {', '.join(STYLES)}")
-    make.add_argument("--skeleton", default="learned", help=f"one of {', '.join(SKELETONS)}")
-    make.add_argument("--duration", type=float, default=3600.0, help="demand horizon, seconds")
+    make.add_argument("--density", type=float, required=True,
+                      help=f"road nodes per km², > 0 and <= {MAX_DENSITY:g}; the map must hold "
+                           f"at least {MIN_ROAD_NODES} road nodes")
+    make.add_argument("--vehicles", type=int, required=True, help=VEHICLES_HELP)
+    make.add_argument("--size", default="2000", help=SIZE_HELP)
+    make.add_argument("--seed", type=int, default=0,
+                      help=f"{SEED_HELP} (SUMO's tools take 32-bit seeds)")
+    make.add_argument("--style", default="mixed", metavar=_choices(STYLES), help="road style")
+    make.add_argument("--skeleton", default="learned", metavar=_choices(SKELETONS),
+                      help="how the arterial roads are made")
+    make.add_argument("--duration", type=float, default=3600.0, help=DURATION_HELP)
     make.add_argument("--out", type=Path, help="output folder (default ./scenarios/<name>)")
     make.add_argument("--force", action="store_true", help="replace an existing output folder")
     make.add_argument("--no-validate", action="store_true", help="skip the libsumo validation")
@@ -55,9 +136,12 @@ def build_parser() -> argparse.ArgumentParser:
     prep.add_argument("--osm", type=Path, nargs="+", required=True,
                       help=".osm, .osm.gz, .osm.bz2 or .osm.pbf files")
     prep.add_argument("--out", type=Path, required=True, help="dataset folder")
-    prep.add_argument("--tile", type=float, default=2000.0, help="tile side, metres")
-    prep.add_argument("--size", type=int, default=128, help="raster cells per tile side")
-    prep.add_argument("--seed", type=int, default=0)
+    prep.add_argument("--tile", type=_number(float, MIN_TILE_M, MAX_TILE_M), default=2000.0,
+                      help=f"tile side in metres, {MIN_TILE_M:g}..{MAX_TILE_M:g}")
+    prep.add_argument("--size", type=_number(int, MIN_CELLS, MAX_CELLS), default=128,
+                      help=f"raster cells per tile side, {MIN_CELLS}..{MAX_CELLS}, a multiple "
+                           "of 8")
+    prep.add_argument("--seed", type=SEED, default=0, help=SEED_HELP)
     prep.add_argument("--force", action="store_true", help="replace an existing dataset folder")
 
     val = sub.add_parser("validate", help="re-run the validation of a scenario folder")
@@ -66,7 +150,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_suite_commands(sub, make)
     ev = sub.add_parser("evaluate", help="our metrics for any SUMO network")
     ev.add_argument("net", type=Path, metavar="NET.net.xml")
-    ev.add_argument("--area-km2", type=float, help="map area (default: the net's convBoundary)")
+    ev.add_argument("--area-km2", type=_number(float, 0, math.inf, above=True),
+                    help="map area in km², > 0 (default: the net's convBoundary)")
     ev.add_argument("--json", action="store_true", help="print the metrics as JSON")
     _add_train_commands(sub)
     return parser
@@ -75,19 +160,25 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:
     """``make-suite``, ``check-suite`` and ``render`` (scenario suites and previews)."""
     suite = sub.add_parser("make-suite", help="build a grid of scenarios with a manifest")
-    suite.add_argument("--densities", required=True, help="road nodes per km², e.g. 10,20,30")
-    suite.add_argument("--styles", default="mixed", help=f"comma-separated: {', '.join(STYLES)}")
-    suite.add_argument("--seeds", default="0", help="seeds and ranges, e.g. 0-9 or 0,3,7")
-    suite.add_argument("--size", default="2000", help="map size in metres: 2000 or 3000x2000")
-    suite.add_argument("--vehicles", type=int, default=500, help="vehicles per scenario")
-    suite.add_argument("--duration", type=float, default=3600.0, help="demand horizon, seconds")
+    suite.add_argument("--densities", required=True,
+                       help=f"road nodes per km², each > 0 and <= {MAX_DENSITY:g}, e.g. 10,20,30")
+    suite.add_argument("--styles", default="mixed",
+                       help=f"comma-separated, from {_choices(STYLES)}")
+    suite.add_argument("--seeds", default="0",
+                       help=f"seeds and ranges, e.g. 0-9 or 0,3,7; each 0..{MAX_SEED}")
+    suite.add_argument("--size", default="2000", help=SIZE_HELP)
+    suite.add_argument("--vehicles", type=int, default=500, help=f"{VEHICLES_HELP} per scenario")
+    suite.add_argument("--duration", type=float, default=3600.0, help=DURATION_HELP)
     suite.add_argument("--skeleton", default=make.get_default("skeleton"),
-                       help=f"one of {', '.join(SKELETONS)}")  # same default as make-scenario
+                       metavar=_choices(SKELETONS),
+                       help="how the arterial roads are made")  # same default as make-scenario
     suite.add_argument("--out", type=Path, required=True, help="suite folder")
     suite.add_argument("--force", action="store_true", help="replace an existing suite folder")
-    suite.add_argument("--engine", default="local", help="local (process pool) or ray")
+    suite.add_argument("--engine", default="local", metavar="{local,ray}",
+                       help="local (process pool) or ray")
     suite.add_argument("--address", help="Ray cluster address (with --engine ray)")
-    suite.add_argument("--workers", type=int, help="parallel scenarios (default: CPU count)")
+    suite.add_argument("--workers", type=int,
+                       help=f"parallel scenarios, 1..{MAX_WORKERS} (default: CPU count)")
     suite.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     suite.add_argument("--json", action="store_true", help="print the summary as JSON")
 
@@ -95,7 +186,8 @@ def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:
     check.add_argument("dir", type=Path)
     check.add_argument("--no-regenerate", action="store_true",
                        help="only re-validate; do not rebuild every scenario to compare hashes")
-    check.add_argument("--workers", type=int, help="parallel scenarios (default: CPU count)")
+    check.add_argument("--workers", type=int,
+                       help=f"parallel scenarios, 1..{MAX_WORKERS} (default: CPU count)")
     check.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     check.add_argument("--json", action="store_true", help="print the result as JSON")
 
@@ -111,30 +203,52 @@ def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = _one_line_warning
     keep_freed_memory()
     try:
-        args = build_parser().parse_args(argv)
-        if args.command == "make-scenario":
-            return _make_scenario(args)
-        if args.command == "evaluate":
-            return _evaluate(args)
-        if args.command == "train":
-            return _train(args)
-        if args.command == "data":
-            return _data_prepare(args)
-        if args.command in ("make-suite", "check-suite", "render"):
-            return {"make-suite": _make_suite, "check-suite": _check_suite,
-                    "render": _render}[args.command](args)  # fmt: skip
-        return _validate(args)
+        with children.handle_termination():
+            return _run(build_parser().parse_args(argv))
     except RoadweaverError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except children.Stopped as exc:
+        what = "terminated" if exc.signum == signal.SIGTERM else "interrupted"
+        print(f"{PROG}: {what}; nothing was left half-written", file=sys.stderr)
+        return 128 + exc.signum
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted; nothing was left half-written", file=sys.stderr)
         return 130
+    except Exception as exc:  # noqa: BLE001 - a bug: one line here, the traceback in a log
+        log = _crash_log(argv)
+        message = " ".join(str(exc).split())[:200]
+        print(f"{PROG}: error: internal error ({type(exc).__name__}: {message}); "
+              f"please report it with the traceback in {log}", file=sys.stderr)
+        return EXIT_INTERNAL_ERROR
+
+
+def _run(args) -> int:
+    commands = {"make-scenario": _make_scenario, "evaluate": _evaluate, "train": _train,
+                "data": _data_prepare, "make-suite": _make_suite, "check-suite": _check_suite,
+                "render": _render, "validate": _validate}  # fmt: skip
+    return commands[args.command](args)
+
+
+def _crash_log(argv: list[str] | None) -> Path:
+    """Write the traceback being handled to a new log file (in the user's cache folder, else
+    the temporary folder) and return its path."""
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    text = (f"{PROG} {__version__}, Python {sys.version.split()[0]}\n"
+            f"arguments: {sys.argv[1:] if argv is None else argv}\n\n{traceback.format_exc()}")
+    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / PROG
+    for folder in (cache, Path(tempfile.gettempdir())):
+        path = folder / f"crash-{stamp}-{os.getpid()}.log"
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            path.write_text(text, encoding="utf-8")
+            return path
+        except OSError:
+            continue
+    return Path("(no writable folder for the log)")
 
 
 def _make_scenario(args) -> int:
-    from .pipeline import make_scenario
-
     width, height = parse_size(args.size)
     spec = ScenarioSpec(
         density=args.density,
@@ -147,6 +261,8 @@ def _make_scenario(args) -> int:
         duration=args.duration,
     )
     out = args.out if args.out is not None else Path("scenarios") / spec.name
+    from .pipeline import make_scenario  # after the checks: its imports take a while
+
     log = (lambda msg: None) if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
     result = make_scenario(spec, out, force=args.force, validate=not args.no_validate, log=log)
     return _finish(result.out_dir, result.report, args.json, "wrote")
@@ -159,8 +275,8 @@ def _data_prepare(args) -> int:
     for path in args.osm:
         if not path.is_file():
             raise RoadweaverError(f"OSM file {path} not found")
-    if args.tile <= 0 or args.size < 8:
-        raise RoadweaverError("--tile must be > 0 metres and --size at least 8 cells")
+    if args.size % 8:
+        raise RoadweaverError(f"--size must be a multiple of 8 cells, got {args.size}")
     with staged_folder(args.out, args.force) as tmp:
         manifest = prepare_dataset(args.osm, tmp, tile_m=args.tile, size=args.size,
                                    seed=args.seed, log=lambda msg: print(f"  {msg}", file=sys.stderr))
@@ -185,15 +301,28 @@ def _validate(args) -> int:
     folder: Path = args.dir
     if not (folder / "scenario.sumocfg").is_file():
         raise RoadweaverError(f"{folder} is not a scenario folder (no scenario.sumocfg)")
+    previous = _read_report(folder)  # a damaged report fails before the validation runs
     report, _ = validate_scenario(folder)
-    old = folder / "report.json"
-    if old.is_file():
-        previous = json.loads(old.read_text(encoding="utf-8"))
-        if "generation" in previous:
-            report["generation"] = previous["generation"]
+    if previous is not None and "generation" in previous:
+        report["generation"] = previous["generation"]
     write_report(folder, report)
-    report = json.loads(old.read_text(encoding="utf-8"))
-    return _finish(folder, report, args.json, "validated")
+    return _finish(folder, _read_report(folder), args.json, "validated")
+
+
+def _read_report(folder: Path) -> dict | None:
+    """``folder/report.json`` as a dict, None if there is none; a one-line error if it is
+    damaged."""
+    path = folder / "report.json"
+    if not path.exists():
+        return None
+    try:
+        report = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise RoadweaverError(f"cannot read {path} ({exc}); delete it to validate afresh") from None
+    if not isinstance(report, dict):
+        raise RoadweaverError(f"{path} is not a report (not a JSON object); delete it to "
+                              "validate afresh")
+    return report
 
 
 def _finish(folder: Path, report: dict | None, as_json: bool, verb: str) -> int:
@@ -247,7 +376,9 @@ def _make_suite(args) -> int:
 
 def _check_suite(args) -> int:
     from .suite import Progress, check_suite, environment_note, read_manifest
+    from .suite.engines import check_workers
 
+    check_workers(args.workers)
     _, manifest = read_manifest(args.dir)  # a broken manifest fails before any work
     progress = Progress(len(manifest["scenarios"]), enabled=not (args.quiet or args.json))
     problems = check_suite(args.dir, regenerate=not args.no_regenerate, workers=args.workers,
@@ -279,6 +410,10 @@ def _render(args) -> int:
     from .render import render_preview
 
     for folder in args.dirs:
+        if not folder.is_dir():
+            raise RoadweaverError(f"{folder} is not a folder")
+        _read_report(folder)
+    for folder in args.dirs:
         print(f"wrote {render_preview(folder)}")
     return 0
 
@@ -302,28 +437,50 @@ def _add_train_commands(sub) -> None:
             p.add_argument("--teacher", type=Path, required=True,
                            help="trained transformer checkpoint (from 'train maskgit')")
         p.add_argument("--out", type=Path, required=True, help="checkpoint file to write")
-        p.add_argument("--steps", type=int, default=defaults.steps)
-        p.add_argument("--batch", type=int, default=defaults.batch)
-        p.add_argument("--lr", type=float, default=defaults.lr)
-        p.add_argument("--seed", type=int, default=defaults.seed)
+        p.add_argument("--steps", type=_number(int, 1, MAX_STEPS), default=defaults.steps,
+                       help=f"training steps, 1..{MAX_STEPS}")
+        p.add_argument("--batch", type=_number(int, 1, MAX_BATCH), default=defaults.batch,
+                       help=f"tiles per step, 1..{MAX_BATCH}")
+        p.add_argument("--lr", type=_number(float, 0, MAX_LR, above=True), default=defaults.lr,
+                       help=f"learning rate, > 0 and <= {MAX_LR:g}")
+        p.add_argument("--seed", type=SEED, default=defaults.seed, help=SEED_HELP)
         p.add_argument("--force", action="store_true", help="replace an existing checkpoint")
         p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+
+
+def _check_train_paths(args) -> None:
+    """Every path of a ``train`` command, before the first step: a training run is long, and
+    its checkpoint is written only at its end."""
+    out: Path = args.out
+    if out.is_dir():
+        raise RoadweaverError(f"--out {out} is a folder; name the checkpoint file to write")
+    if out.exists() and not args.force:
+        raise RoadweaverError(f"{out} exists; pass --force to replace it")
+    parent = out.parent if str(out.parent) else Path(".")
+    if not parent.is_dir():
+        raise RoadweaverError(f"--out {out}: folder {parent} does not exist")
+    manifest = args.data / "manifest.json"
+    if not manifest.is_file():
+        raise RoadweaverError(f"{args.data} is not a prepared dataset (no manifest.json)")
+    try:
+        json.loads(manifest.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise RoadweaverError(f"cannot read {manifest} ({exc})") from None
+    for option in ("vqvae", "teacher"):
+        path = getattr(args, option, None)
+        if path is not None and not path.is_file():
+            raise RoadweaverError(f"--{option} {path}: no such checkpoint file")
 
 
 def _train(args) -> int:
     from dataclasses import replace
 
+    _check_train_paths(args)
     if importlib.util.find_spec("torch") is None:
         raise RoadweaverError("training needs torch: pip install 'roadweaver-sumo[train]'")
     from .generative import settings as defaults
     from .generative import training
 
-    if args.out.exists() and not args.force:
-        raise RoadweaverError(f"{args.out} exists; pass --force to replace it")
-    if not (args.data / "manifest.json").is_file():
-        raise RoadweaverError(f"{args.data} is not a prepared dataset (no manifest.json)")
-    if args.steps < 1 or args.batch < 1 or not args.lr > 0 or args.seed < 0:
-        raise RoadweaverError("--steps and --batch must be >= 1, --lr > 0 and --seed >= 0")
     base = {"vqvae": defaults.VQVAE_SETTINGS, "maskgit": defaults.MASKGIT_SETTINGS,
             "distil": defaults.DISTIL_SETTINGS}[args.model]
     settings = replace(base, steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed)

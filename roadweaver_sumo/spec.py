@@ -18,7 +18,12 @@ SKELETONS = ("learned", "procedural")
 MAX_SIDE_M = 50_000.0
 MIN_SIDE_M = 200.0
 MAX_VEHICLES = 1_000_000
+MAX_DENSITY = 400.0  # road nodes per km²
 MIN_ROAD_NODES = 4
+MIN_DURATION_S, MAX_DURATION_S = 1.0, 604_800.0  # a week of demand
+#: SUMO's tools take a seed that fits a signed 32-bit int (duarouter fails above it); the spec's
+#: seed goes to randomTrips, duarouter and the sumocfg unchanged.
+MAX_SEED = 2**31 - 1
 DEFAULT_GEO_ORIGIN = (48.137, 11.575)  # lat, lon: only a label for the local metric frame
 
 # Stage ids for np.random.default_rng([seed, STAGE]): each stage draws from its own stream, so
@@ -43,8 +48,9 @@ class ScenarioSpec:
 
     def __post_init__(self) -> None:
         _check_positive_number("density", self.density)
-        if self.density > 400:
-            raise RoadweaverError(f"--density {self.density:g} is above 400 road nodes/km²")
+        if self.density > MAX_DENSITY:
+            raise RoadweaverError(
+                f"--density {self.density:g} is above {MAX_DENSITY:g} road nodes/km²")
         if isinstance(self.vehicles, bool) or not isinstance(self.vehicles, int):
             raise RoadweaverError(f"--vehicles must be a whole number, got {self.vehicles!r}")
         if not 1 <= self.vehicles <= MAX_VEHICLES:
@@ -62,9 +68,11 @@ class ScenarioSpec:
             raise RoadweaverError(
                 f"unknown skeleton {self.skeleton!r}; choose one of {', '.join(SKELETONS)}"
             )
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise RoadweaverError(f"--seed must be a whole number >= 0, got {self.seed!r}")
+        _check_seed("--seed", self.seed)
         _check_positive_number("--duration", self.duration)
+        if not MIN_DURATION_S <= self.duration <= MAX_DURATION_S:
+            raise RoadweaverError(f"--duration must be {MIN_DURATION_S:g}..{MAX_DURATION_S:g} s "
+                                  f"(a week), got {self.duration:g}")
         nodes = self.density * self.area_km2
         if nodes < MIN_ROAD_NODES:
             raise RoadweaverError(
@@ -131,8 +139,16 @@ def parse_size(text: str) -> tuple[float, float]:
     return width, height
 
 
+def _check_seed(name: str, seed) -> int:
+    """``seed`` if it is a whole number 0..MAX_SEED (what SUMO's tools accept), else a
+    one-line error naming the option."""
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+        raise RoadweaverError(f"{name} must be a whole number 0..{MAX_SEED}, got {seed!r}")
+    return seed
+
+
 def _check_positive_number(name: str, value) -> None:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise RoadweaverError(f"{name} must be a number, got {value!r}")
     if not math.isfinite(value) or value <= 0:
-        raise RoadweaverError(f"{name} must be > 0, got {value:g}")
+        raise RoadweaverError(f"{name} must be > 0 and finite, got {value:g}")
