@@ -482,3 +482,28 @@ def test_a_graph_without_roads_gives_an_empty_map():
     G.add_node(0, xy=(1.0, 2.0))
     hd = build_hdmap(G)
     assert not hd.roads and not hd.junctions and not hd.lanes
+
+
+def _outline(left: np.ndarray, right: np.ndarray) -> Polygon:
+    """A lane's outline, its boundaries joined, at the millimetre a written file keeps (points
+    that meet to 1e-13 m are one point there)."""
+    return Polygon(np.round(np.vstack([left, right[::-1]]), 3))
+
+
+def test_dead_end_uturn_outlines_never_cross_themselves():
+    """At a dead end the innermost U-turn starts and ends its inner boundary on one centre line
+    point; any loop through it makes the outline touch itself (CommonRoad counted such
+    lanelets). The lane pivots on that point instead, and every connector's outline is a valid
+    polygon, the U-turns between outer lanes (arterial arms) included."""
+    hd = build_hdmap(t_junction())
+    uturns = [lane for lane in hd.connectors() if lane.movement == "uturn"]
+    assert {lane.junction for lane in uturns} == {1, 2, 3}  # the three dead ends
+    for lane in hd.connectors():
+        assert _outline(lane.left, lane.right).is_valid, lane.id
+    pivots = [lane for lane in uturns if (lane.left == lane.left[0]).all()]
+    assert len(pivots) == 3 < len(uturns)  # the innermost pair of lanes at each dead end
+    for lane in pivots:
+        before, after = hd.lanes[lane.predecessors[0]], hd.lanes[lane.successors[0]]
+        assert np.array_equal(lane.left[0], before.left[-1])
+        assert np.allclose(after.left[0], lane.left[0], rtol=0.0, atol=1e-9)
+        assert _outline(lane.left, lane.right).area > 0.5 * np.pi * (lane.width / 2) ** 2

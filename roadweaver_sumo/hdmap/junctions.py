@@ -28,6 +28,7 @@ MIN_ANGLE = np.radians(30.0)  # junction angles below this are treated as 30 deg
 NEAR_STRAIGHT = np.radians(150.0)  # neighbouring roads this far apart do not overlap
 HEADING_PROBE = 5.0  # m along a road used to measure its direction at a junction
 LATERAL_ACCEL = 3.0  # m/s^2: connector speed limit sqrt(a * r_min) on tight turns
+PIVOT_GAP = 1e-6  # m: a boundary whose ends are closer starts and ends at one point
 
 
 def junction_type(classes: list[str], traffic_lights: bool = True) -> str:
@@ -165,6 +166,7 @@ def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]],
     w0 = np.array([a.end_width for a in ins])
     w1 = np.array([b.width for b in outs])
     curves, turn_speed = _connector_curves(ctrl, w0, w1)
+    curves = [(centre, *_pivoted(left, right)) for centre, left, right in curves]
     lanes = []
     for (node, in_id, out_id, movement), a, b, (centre, left, right), bezier, turn in zip(
             plan, ins, outs, curves, ctrl, turn_speed.tolist(), strict=True):
@@ -189,6 +191,24 @@ def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]],
         junction.connectors.append(lane.id)
         lanes.append(lane)
     return lanes
+
+
+def _pivoted(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The boundaries of a connector, the inner one held at its end point where it starts and
+    ends at the same point.
+
+    A U-turn between the two lanes beside a road's centre line (at a dead end) starts and ends
+    its inner boundary on the same centre line point: any other inner boundary is a loop through
+    that point, and the lane's outline (left and right boundary joined) touches itself there,
+    an invalid polygon to shapely, CommonRoad and lanelet2 tools, whatever the curve's radius.
+    The lane pivots on that point instead: its outline is the fan from it to the outer
+    boundary."""
+    sides = []
+    for side in (left, right):
+        if len(side) > 2 and np.hypot(*(side[-1] - side[0])) < PIVOT_GAP:
+            side = np.repeat(side[:1], len(side), axis=0)
+        sides.append(side)
+    return sides[0], sides[1]
 
 
 def _connector_curves(ctrl: np.ndarray, w0: np.ndarray, w1: np.ndarray):
