@@ -1,0 +1,205 @@
+"""The command line's arguments: every option with its type, range, default and choices, so
+that ``--help`` states them and a bad value is a one-line error before any work starts.
+
+make-scenario's and make-suite's values are checked where the spec is made (``spec.py``, also
+used for manifests); the ranges here are those of the other commands.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from . import __version__
+from .errors import RoadweaverError
+from .spec import (
+    MAX_DENSITY,
+    MAX_DURATION_S,
+    MAX_SEED,
+    MAX_SIDE_M,
+    MAX_VEHICLES,
+    MIN_DURATION_S,
+    MIN_ROAD_NODES,
+    MIN_SIDE_M,
+    SKELETONS,
+    STYLES,
+)
+from .suite.engines import MAX_WORKERS
+
+PROG = "roadweaver-sumo"
+# data prepare: a tile is cut from one town, and its raster is what the models train on
+MIN_TILE_M, MAX_TILE_M = 200.0, 20_000.0
+MIN_CELLS, MAX_CELLS = 8, 512  # the VQ-VAE downsamples by 8
+# train
+MAX_STEPS, MAX_BATCH, MAX_LR = 10_000_000, 4096, 1.0
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a usage error in one line instead of usage text plus error, and
+    shows defaults in ``--help``."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message: str):
+        raise RoadweaverError(message)
+
+
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """``(default: X)`` after every option with a default worth stating (not None or False)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        if action.default is None or action.default is False or not action.help:
+            return action.help or ""
+        return super()._get_help_string(action)
+
+
+def _number(kind: type, low: float, high: float, *, above: bool = False):
+    """An argparse type: a finite ``kind`` (int or float) from ``low`` (excluded with
+    ``above``) to ``high``; anything else is a one-line error that states the range."""
+    what = "a whole number" if kind is int else "a number"
+    if math.isinf(high):
+        span = f"{'>' if above else '>='} {low:g} and finite"
+    else:
+        span = f"> {low:g} and <= {high:g}" if above else f"{low:g}..{high:g}"
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what} ({span})") from None
+        if not math.isfinite(value) or value < low or value > high or (above and value == low):
+            raise argparse.ArgumentTypeError(f"must be {span}, got {text}")
+        return value
+
+    return parse
+
+
+def _choices(names) -> str:
+    return "{" + ",".join(names) + "}"
+
+
+SEED = _number(int, 0, MAX_SEED)
+SEED_HELP = f"random seed, 0..{MAX_SEED}"
+SIZE_HELP = (f"map size in metres, 2000 or 3000x2000; each side {MIN_SIDE_M:g}..{MAX_SIDE_M:g}")
+VEHICLES_HELP = f"vehicles, 1..{MAX_VEHICLES}"
+DURATION_HELP = (f"demand horizon in seconds, {MIN_DURATION_S:g}..{MAX_DURATION_S:g} (a week)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog=PROG, description="Lane-level road networks as SUMO scenarios.")
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    make = sub.add_parser("make-scenario", help="generate a map and a validated SUMO scenario")
+    make.add_argument("--density", type=float, required=True,
+                      help=f"road nodes per km², > 0 and <= {MAX_DENSITY:g}; the map must hold "
+                           f"at least {MIN_ROAD_NODES} road nodes")
+    make.add_argument("--vehicles", type=int, required=True, help=VEHICLES_HELP)
+    make.add_argument("--size", default="2000", help=SIZE_HELP)
+    make.add_argument("--seed", type=int, default=0,
+                      help=f"{SEED_HELP} (SUMO's tools take 32-bit seeds)")
+    make.add_argument("--style", default="mixed", metavar=_choices(STYLES), help="road style")
+    make.add_argument("--skeleton", default="learned", metavar=_choices(SKELETONS),
+                      help="how the arterial roads are made")
+    make.add_argument("--duration", type=float, default=3600.0, help=DURATION_HELP)
+    make.add_argument("--out", type=Path, help="output folder (default ./scenarios/<name>)")
+    make.add_argument("--force", action="store_true", help="replace an existing output folder")
+    make.add_argument("--no-validate", action="store_true", help="skip the libsumo validation")
+    make.add_argument("--json", action="store_true", help="print the report as JSON")
+
+    data = sub.add_parser("data", help="training data for the learned skeleton")
+    data_sub = data.add_subparsers(dest="data_command", required=True, parser_class=_Parser)
+    prep = data_sub.add_parser("prepare", help="cut OSM files into road-field tiles")
+    prep.add_argument("--osm", type=Path, nargs="+", required=True,
+                      help=".osm, .osm.gz, .osm.bz2 or .osm.pbf files")
+    prep.add_argument("--out", type=Path, required=True, help="dataset folder")
+    prep.add_argument("--tile", type=_number(float, MIN_TILE_M, MAX_TILE_M), default=2000.0,
+                      help=f"tile side in metres, {MIN_TILE_M:g}..{MAX_TILE_M:g}")
+    prep.add_argument("--size", type=_number(int, MIN_CELLS, MAX_CELLS), default=128,
+                      help=f"raster cells per tile side, {MIN_CELLS}..{MAX_CELLS}, a multiple "
+                           "of 8")
+    prep.add_argument("--seed", type=SEED, default=0, help=SEED_HELP)
+    prep.add_argument("--force", action="store_true", help="replace an existing dataset folder")
+
+    val = sub.add_parser("validate", help="re-run the validation of a scenario folder")
+    val.add_argument("dir", type=Path)
+    val.add_argument("--json", action="store_true", help="print the report as JSON")
+    _add_suite_commands(sub, make)
+    ev = sub.add_parser("evaluate", help="our metrics for any SUMO network")
+    ev.add_argument("net", type=Path, metavar="NET.net.xml")
+    ev.add_argument("--area-km2", type=_number(float, 0, math.inf, above=True),
+                    help="map area in km², > 0 (default: the net's convBoundary)")
+    ev.add_argument("--json", action="store_true", help="print the metrics as JSON")
+    _add_train_commands(sub)
+    return parser
+
+
+def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:
+    """``make-suite``, ``check-suite`` and ``render`` (scenario suites and previews)."""
+    suite = sub.add_parser("make-suite", help="build a grid of scenarios with a manifest")
+    suite.add_argument("--densities", required=True,
+                       help=f"road nodes per km², each > 0 and <= {MAX_DENSITY:g}, e.g. 10,20,30")
+    suite.add_argument("--styles", default="mixed",
+                       help=f"comma-separated, from {_choices(STYLES)}")
+    suite.add_argument("--seeds", default="0",
+                       help=f"seeds and ranges, e.g. 0-9 or 0,3,7; each 0..{MAX_SEED}")
+    suite.add_argument("--size", default="2000", help=SIZE_HELP)
+    suite.add_argument("--vehicles", type=int, default=500, help=f"{VEHICLES_HELP} per scenario")
+    suite.add_argument("--duration", type=float, default=3600.0, help=DURATION_HELP)
+    suite.add_argument("--skeleton", default=make.get_default("skeleton"),
+                       metavar=_choices(SKELETONS),
+                       help="how the arterial roads are made")  # same default as make-scenario
+    suite.add_argument("--out", type=Path, required=True, help="suite folder")
+    suite.add_argument("--force", action="store_true", help="replace an existing suite folder")
+    suite.add_argument("--engine", default="local", metavar="{local,ray}",
+                       help="local (process pool) or ray")
+    suite.add_argument("--address", help="Ray cluster address (with --engine ray)")
+    suite.add_argument("--workers", type=int,
+                       help=f"parallel scenarios, 1..{MAX_WORKERS} (default: CPU count)")
+    suite.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    suite.add_argument("--json", action="store_true", help="print the summary as JSON")
+
+    check = sub.add_parser("check-suite", help="check a suite against its manifest")
+    check.add_argument("dir", type=Path)
+    check.add_argument("--no-regenerate", action="store_true",
+                       help="only re-validate; do not rebuild every scenario to compare hashes")
+    check.add_argument("--workers", type=int,
+                       help=f"parallel scenarios, 1..{MAX_WORKERS} (default: CPU count)")
+    check.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    check.add_argument("--json", action="store_true", help="print the result as JSON")
+
+    render = sub.add_parser("render", help="redraw preview.png of scenario folders")
+    render.add_argument("dirs", type=Path, nargs="+", metavar="DIR")
+
+
+def _add_train_commands(sub) -> None:
+    """``train vqvae``, ``train maskgit`` and ``train distil`` (the learned skeleton, paper
+    §III-B; distil: the transformer's guidance, so sampling needs one pass per step)."""
+    from .generative.settings import DISTIL_SETTINGS, MASKGIT_SETTINGS, VQVAE_SETTINGS
+
+    train = sub.add_parser("train", help="train the learned skeleton's models")
+    kinds = train.add_subparsers(dest="model", required=True, parser_class=_Parser)
+    for name, defaults, what in (
+            ("vqvae", VQVAE_SETTINGS, "train the VQ-VAE"),
+            ("maskgit", MASKGIT_SETTINGS, "train the masked transformer"),
+            ("distil", DISTIL_SETTINGS, "distil a trained transformer's guidance into a copy")):
+        p = kinds.add_parser(name, help=f"{what} on a prepared dataset")
+        p.add_argument("--data", type=Path, required=True, help="folder from 'data prepare'")
+        if name != "vqvae":
+            p.add_argument("--vqvae", type=Path, required=True, help="trained VQ-VAE checkpoint")
+        if name == "distil":
+            p.add_argument("--teacher", type=Path, required=True,
+                           help="trained transformer checkpoint (from 'train maskgit')")
+        p.add_argument("--out", type=Path, required=True, help="checkpoint file to write")
+        p.add_argument("--steps", type=_number(int, 1, MAX_STEPS), default=defaults.steps,
+                       help=f"training steps, 1..{MAX_STEPS}")
+        p.add_argument("--batch", type=_number(int, 1, MAX_BATCH), default=defaults.batch,
+                       help=f"tiles per step, 1..{MAX_BATCH}")
+        p.add_argument("--lr", type=_number(float, 0, MAX_LR, above=True), default=defaults.lr,
+                       help=f"learning rate, > 0 and <= {MAX_LR:g}")
+        p.add_argument("--seed", type=SEED, default=defaults.seed, help=SEED_HELP)
+        p.add_argument("--force", action="store_true", help="replace an existing checkpoint")
+        p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
