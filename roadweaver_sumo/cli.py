@@ -140,9 +140,11 @@ def _validate(args) -> int:
     if not (folder / "scenario.sumocfg").is_file():
         raise RoadweaverError(f"{folder} is not a scenario folder (no scenario.sumocfg)")
     previous = _read_report(folder)  # a damaged report fails before the validation runs
+    from .staging import scratch_beside
     from .validate.report import validate_scenario, write_report
 
-    report, _ = validate_scenario(folder)
+    with scratch_beside(folder):
+        report, _ = validate_scenario(folder)
     if previous is not None and "generation" in previous:
         report["generation"] = previous["generation"]
     write_report(folder, report)

@@ -49,6 +49,28 @@ def staged_folder(out_dir: Path, force: bool) -> Iterator[Path]:
             shutil.rmtree(tmp, ignore_errors=True)
 
 
+@contextmanager
+def scratch_beside(folder: Path) -> Iterator[Path | None]:
+    """While the block runs, temporary files of work on the existing ``folder`` (``validate``)
+    go to a hidden ``.NAME.partial-PID-*`` folder beside it, removed afterwards, or by the next
+    run if this one is killed. Yields None (the system's temporary folder) where the parent
+    folder is not writable."""
+    folder = Path(folder)
+    remove_stale(folder)
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.partial-{os.getpid()}-",
+                                    dir=folder.parent if str(folder.parent) else "."))
+    except OSError:
+        yield None
+        return
+    _staged.append(tmp)
+    try:
+        yield tmp
+    finally:
+        _staged.remove(tmp)
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
 def scratch_dir() -> Path | None:
     """Where temporary files go: inside the folder this process is staging, so that a killed
     run leaves them only there (removed by the next run); None (the system's temporary
