@@ -32,6 +32,7 @@ from ..roadgraph import (
     sorted_edge_list,
 )
 from ..skeleton.model import PERIMETER_INSET
+from .clearance import roads_too_close
 
 GRID = 0.01  # noding precision, metres
 CLASS_RANK = {name: rank for rank, name in enumerate(reversed(ROAD_CLASSES))}  # local=0
@@ -717,16 +718,16 @@ def _sharp_pair_road(G: nx.Graph, n: int, limit: float, hairpin: float,
     if G.degree(n) < 2:
         return None
     if G.degree(n) == 2 and _meeting_angle(G, n, cache) < hairpin:
-        return min(((n, w) for w in G.neighbors(n)), key=lambda e: _edge_weight(G, *e))
+        return min(((n, w) for w in G.neighbors(n)), key=lambda e: road_keep_weight(G, *e))
     angles = departure_angles(G, n, cache=cache)
     for k, (a1, w1) in enumerate(angles):
         a2, w2 = angles[(k + 1) % len(angles)]
         if (a2 - a1) % (2 * math.pi) < limit:
-            return min(((n, w1), (n, w2)), key=lambda e: _edge_weight(G, *e))
+            return min(((n, w1), (n, w2)), key=lambda e: road_keep_weight(G, *e))
     return None
 
 
-def _edge_weight(G, u, v):
+def road_keep_weight(G, u, v):
     """Which of two roads to keep: the perimeter ring always, then the higher class, then the
     longer road. Cutting the ring for a road that meets it at a shallow angle would leave two
     dead ends at the border, and pruning those unravels the whole ring (seen with fragmentary
@@ -902,6 +903,19 @@ def _maybe_sharp(coords: list, max_turn_deg: float) -> np.ndarray:
             + np.bincount(step_owner[1:][sharp], minlength=n)) > 0
 
 
+def remove_close_roads(G: nx.Graph) -> set:
+    """Remove, of every pair of roads closer than their lanes allow (:mod:`.clearance`), the
+    road less worth keeping (:func:`road_keep_weight`); returns the nodes whose roads
+    changed."""
+    touched: set = set()
+    for a, b in roads_too_close(G):
+        if G.has_edge(*a) and G.has_edge(*b):
+            road = min(a, b, key=lambda e: (*road_keep_weight(G, *e), e))
+            G.remove_edge(*road)
+            touched.update(road)
+    return touched
+
+
 def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: float,
           keep_largest: bool = True, min_block_area: float = 0.0,
           changed: set | None = None) -> None:
@@ -926,6 +940,7 @@ def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: f
         touched |= contract_short_edges(G, min_edge, nodes=changed, order=order)
         cut = remove_sharp_angles(G, min_angle, bearings,
                                   nodes=None if changed is None else changed | touched)
+        cut |= remove_close_roads(G)
         touched |= cut
         touched |= prune_stubs(G, stub, margin,
                                nodes=None if changed is None else changed | touched)
@@ -971,7 +986,7 @@ def open_tiny_blocks(G: nx.Graph, min_area: float = MIN_BLOCK_AREA) -> list[tupl
         sides = [edges[k] for k in tree.query(block.exterior, predicate="covers")]
         if not sides or not all(G.has_edge(*e) for e in sides):
             continue  # a side already went with a neighbouring block's: the two are one now
-        road = min(sides, key=lambda e: (*_edge_weight(G, *e), e))
+        road = min(sides, key=lambda e: (*road_keep_weight(G, *e), e))
         G.remove_edge(*road)
         removed.append(road)
     return removed
