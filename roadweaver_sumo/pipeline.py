@@ -29,6 +29,7 @@ from .spec import ScenarioSpec
 from .staging import staged_folder
 from .validate.net_metrics import loaded_net_metrics
 from .validate.netgraph import load_net
+from .validate.overlaps import hdmap_overlaps
 from .validate.report import check_thresholds, validate_scenario, write_report
 
 SPEC_FILE = "spec.json"
@@ -158,7 +159,7 @@ def build_scenario_files(
             "target_density": spec.density,
             "skeleton": skeleton.provenance,
             "road_graph": graph_metrics(graph, spec.area_km2),
-            "hdmap": hdmap_metrics(hdmap),
+            "hdmap": hdmap_metrics(hdmap) | {"lane_overlaps": len(hdmap_overlaps(hdmap))},
         }
         del skeleton, graph, hdmap  # their memory is free before the net is measured
         net_built.result()

@@ -18,6 +18,7 @@ import sumolib
 
 from .. import metrics
 from .netgraph import internal_chain, lane_graph, load_net, road_edges, road_graph, road_junctions
+from .overlaps import net_overlaps
 
 
 def net_metrics(net_path: Path, area_km2: float) -> dict:
@@ -37,6 +38,8 @@ def loaded_net_metrics(net: sumolib.net.Net, area_km2: float) -> dict:
         junction_reachability=junction_reachability(lanes, junctions),
         lane_reachability=lane_reachability(lanes),
         alignment=alignment_errors(net),
+        # lanes drawn over each other outside junctions, not only centrelines that cross
+        crossings_without_junction=len(net_overlaps(net)),
     )
     return result
 

@@ -44,7 +44,8 @@ class Threshold(NamedTuple):
 THRESHOLDS: tuple[Threshold, ...] = (
     Threshold("net.lcc_ratio", ">=", 1.0, "share of road nodes in the largest component"),
     Threshold("net.lane_reachability", ">=", 0.995, "share of lane pairs with a drivable path"),
-    Threshold("net.crossings_without_junction", "<=", 0, "roads crossing without a junction"),
+    Threshold("net.crossings_without_junction", "<=", 0,
+              "roads whose lanes cross or overlap outside a junction"),
     Threshold("net.sharp_bends", "<=", 0, "roads turning over 120° within 12 m"),
     Threshold("net.alignment.mean", "<=", 0.05, "mean lane-end gap at junctions (m)"),
     Threshold("simulation.arrived_ratio", ">=", 0.99, "share of vehicles that arrived"),
