@@ -20,6 +20,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter
 
 from .compiled import B1, F8_1D, F8_2D, compiled
+from .portable import portable
 
 
 @dataclass
@@ -31,6 +32,9 @@ class TensorField:
     res: float
     _unit_arrays: tuple | None = field(default=None, repr=False, compare=False)
 
+    def __post_init__(self):
+        self.c2, self.s2 = portable(self.c2), portable(self.s2)
+
     def _cell(self, x, y):
         ny, nx = self.c2.shape
         j = np.clip((np.asarray(x) / self.res).astype(int), 0, nx - 1)
@@ -41,14 +45,14 @@ class TensorField:
         """Unit major eigenvector(s) at the point(s); shape (..., 2)."""
         i, j = self._cell(x, y)
         theta = 0.5 * np.arctan2(self.s2[i, j], self.c2[i, j])
-        return np.stack([np.cos(theta), np.sin(theta)], axis=-1)
+        return portable(np.stack([np.cos(theta), np.sin(theta)], axis=-1))
 
     def unit_vectors(self) -> tuple[np.ndarray, np.ndarray]:
         """cos θ and sin θ of the major direction of every cell, flattened row by row; kept,
         since every traced road reads them."""
         if self._unit_arrays is None:
             theta = 0.5 * np.arctan2(self.s2, self.c2).ravel()
-            self._unit_arrays = tuple(np.ascontiguousarray(axis, dtype=np.float64)
+            self._unit_arrays = tuple(np.ascontiguousarray(portable(axis))
                                       for axis in (np.cos(theta), np.sin(theta)))
         return self._unit_arrays
 

@@ -21,6 +21,7 @@ from scipy.ndimage import gaussian_filter, map_coordinates
 from ..data.condition import style_preset
 from ..data.field import field_to_graph
 from ..forked import beside
+from ..portable import FLOAT32_DECIMALS, portable
 from ..roadgraph import edge_coords, edge_length
 from ..spec import STAGE_SKELETON, ScenarioSpec
 from ..tensor_field import TensorField, blend, field_grid, from_cross, magnitude, to_cross
@@ -62,6 +63,7 @@ def learned_skeleton(spec: ScenarioSpec, generator=None) -> Skeleton:
     c, scale = condition_for(spec)
     seed = int(spec.rng(STAGE_SKELETON).integers(2**31))
     F, res = sample_field(gen, c, spec.width, spec.height, seed, scale=scale)
+    F = portable(F, FLOAT32_DECIMALS).astype(F.dtype)
 
     def centrelines() -> tuple[list, list]:
         graph = field_to_graph(F, F.shape[1] * res, threshold=gen.road_threshold)
