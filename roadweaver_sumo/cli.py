@@ -223,19 +223,23 @@ def _check_suite(args) -> int:
     check_workers(args.workers)
     _, manifest = read_manifest(args.dir)  # a broken manifest fails before any work
     progress = Progress(len(manifest["scenarios"]), enabled=not (args.quiet or args.json))
+    noise: dict[str, list[str]] = {}
     problems = check_suite(args.dir, regenerate=not args.no_regenerate, workers=args.workers,
-                           progress=progress)  # fmt: skip
+                           progress=progress, notes=noise)  # fmt: skip
     drifted = {name: found for name, found in problems.items() if found}
     note = environment_note(args.dir) if drifted else None
     checked = len(manifest["scenarios"])
     if args.json:
         print(json.dumps({"suite": str(args.dir), "checked": checked, "passed": not drifted,
                           "regenerated": not args.no_regenerate, "drift": drifted,
-                          "note": note}, indent=2, sort_keys=True))  # fmt: skip
+                          "noise": noise, "note": note}, indent=2, sort_keys=True))  # fmt: skip
     else:
         for name, found in drifted.items():
             for problem in found:
                 print(f"{name}: {problem}")
+        for name, found in noise.items():
+            for line in found:
+                print(f"{name}: note: {line}")
         verdict = f"{len(drifted)} drifted" if drifted else "all match the manifest"
         print(f"checked {checked} scenarios of {args.dir}: {verdict}")
         if note:

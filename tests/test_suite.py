@@ -1,5 +1,6 @@
 """make-suite / check-suite end to end on a tiny suite (2 scenarios of 500 m), local and on Ray."""
 
+import hashlib
 import json
 import re
 import shutil
@@ -82,3 +83,24 @@ def test_check_suite_names_the_scenario_file_and_figure_that_drifted(suite, tmp_
     assert err.startswith("roadweaver-sumo: error:") and err.count("\n") == 1
 
 
+
+
+def test_check_suite_names_the_line_where_a_rebuilt_map_really_changed(suite, tmp_path, capsys):
+    """The suite's map is edited as a generator change would (one junction moved 3 m) and its
+    manifest follows: the rebuild then differs beyond the tolerances, and the line is named."""
+    copy = tmp_path / "moved"
+    shutil.copytree(suite, copy)
+    nodes = copy / NAMES[0] / "plain" / "map.nod.xml"
+    text = nodes.read_text()
+    x = re.search(r'<node id="n1" x="([-\d.]+)"', text)
+    moved = text.replace(x.group(0), x.group(0).replace(x.group(1), f"{float(x.group(1)) + 3:.2f}"))
+    nodes.write_text(moved)
+    manifest = json.loads((copy / MANIFEST_FILE).read_text())
+    manifest["scenarios"][NAMES[0]]["files"]["plain/map.nod.xml"] = \
+        hashlib.sha256(moved.encode()).hexdigest()
+    (copy / MANIFEST_FILE).write_text(json.dumps(manifest))
+    shutil.rmtree(copy / NAMES[1])  # one scenario is enough to rebuild
+    assert main(["check-suite", str(copy), "--quiet"]) == 1
+    out = capsys.readouterr().out
+    assert (f"{NAMES[0]}: regenerated plain/map.nod.xml differs from the manifest: line "
+            in out) and 'id="n1"' in out
