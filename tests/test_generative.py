@@ -211,9 +211,10 @@ def test_inpainting_keeps_known_tokens(tiny_models):
 
 
 @pytest.mark.skipif(not SHIPPED_MASKGIT.is_file(), reason="weights not trained yet")
-def test_trunk_rows_are_bitwise_those_of_the_full_trunk():
+def test_trunk_rows_are_those_of_the_full_trunk():
     """Features of some rows only (the last block computing just those) are the full trunk's
-    rows to the bit, for any number of rows."""
+    rows, for any number of rows: to float32 rounding (BLAS kernels of some CPUs sum a row
+    differently when the matrix has other rows)."""
     gen = Generator.load()
     rng = np.random.default_rng(0)
     n, G = gen.grid ** 2, gen.sampler.cfg.groups
@@ -223,15 +224,17 @@ def test_trunk_rows_are_bitwise_those_of_the_full_trunk():
         masked = np.zeros(n, dtype=bool)
         masked[rng.choice(n, m, replace=False)] = True
         rows = np.flatnonzero(masked)
-        assert np.array_equal(gen.sampler.trunk(tokens, masked, row, rows),
-                              gen.sampler.trunk(tokens, masked, row)[rows])
+        np.testing.assert_allclose(gen.sampler.trunk(tokens, masked, row, rows),
+                                   gen.sampler.trunk(tokens, masked, row)[rows],
+                                   rtol=1e-4, atol=1e-5)
 
 
 @pytest.mark.skipif(not SHIPPED_VQVAE.is_file(), reason="weights not trained yet")
 def test_decoding_on_two_threads_gives_the_fields_of_one(monkeypatch):
     """decode_canvas, whose convolutions split their products over two threads (halves of the
-    rows, output phases), decodes to the bit what the decoder computes with every product
-    whole on BLAS's own threads: canvases of one token row up to larger than a window."""
+    rows, output phases), decodes what the decoder computes with every product whole on
+    BLAS's own threads, to float32 rounding (the kernels of some CPUs sum the halves of a
+    product otherwise): canvases of one token row up to larger than a window."""
     gen = Generator.load()
     G, K = gen.decoder.codes.shape[:2]
     canvases = [np.random.default_rng(1).integers(0, K, (*shape, G))
@@ -239,7 +242,7 @@ def test_decoding_on_two_threads_gives_the_fields_of_one(monkeypatch):
     fields = [decode_canvas(gen.decoder, tokens) for tokens in canvases]
     monkeypatch.setattr(inference, "_halves", lambda n: [(0, n)])
     for tokens, field in zip(canvases, fields, strict=True):
-        assert np.array_equal(field, gen.decoder.decode(tokens))
+        np.testing.assert_allclose(field, gen.decoder.decode(tokens), rtol=1e-4, atol=1e-5)
 
 
 def _group_norm_silu_group_by_group(x, weight, bias, groups):
