@@ -880,9 +880,32 @@ def smooth_bends(G: nx.Graph, max_turn_deg: float = 30.0, radius: float = 20.0) 
     roads = [data for _, _, data in edge_list(G)]
     if not roads:
         return
+    straighten_road_ends(G)
     for k in np.flatnonzero(_maybe_sharp([data["coords"] for data in roads], max_turn_deg)):
         data = roads[k]
         data["coords"] = round_corners(data["coords"], max_turn_deg, radius)
+
+
+#: Roads leave their junctions straight for this many metres. A vertex a metre from the node
+#: (left by a merge of close junctions or a snapped end) makes a hook that SUMO takes for the
+#: road's direction: netconvert then cut a road's lanes past the junction's centre, on top of
+#: another road's, and the lanes offset from the hook fold over.
+STRAIGHT_END = 5.0
+
+
+def straighten_road_ends(G: nx.Graph, reach: float = STRAIGHT_END) -> None:
+    """Drop every vertex of a road within ``reach`` metres (along it) of either end node."""
+    for _, _, data in edge_list(G):
+        c = data["coords"]
+        if len(c) < 3:
+            continue
+        step = np.hypot(*np.diff(c, axis=0).T)
+        if step[0] >= reach and step[-1] >= reach:
+            continue
+        along = np.r_[0.0, np.cumsum(step)]
+        keep = (along >= reach) & (along <= along[-1] - reach)
+        keep[0] = keep[-1] = True
+        data["coords"] = c[keep]
 
 
 def _maybe_sharp(coords: list, max_turn_deg: float) -> np.ndarray:

@@ -5,8 +5,7 @@ crossings without junction).
 Two centrelines can stay apart while the lanes around them overlap, so the check is made on the
 lanes' outlines: each lane is its centre line buffered by half its width. Two outlines of
 different roads may touch only inside the junction areas at their ends. In a SUMO net those
-areas are the junctions' shapes; in the HD map road lanes stop at the junction trims, so their
-outlines of different roads must not meet at all.
+areas are the junctions' shapes; in the HD map the discs that road lanes are trimmed back to.
 """
 
 from __future__ import annotations
@@ -23,6 +22,7 @@ from .netgraph import road_edges
 #: count; an overlap of less than this is not one a driver would notice either.
 SLACK = 0.1  # metres
 MIN_AREA = 0.5  # m²: shapely's last-bit slivers between outlines that share a rim
+RIM = 1.0  # metres beyond an HD map junction's trim radius where lane ends' corners may meet
 
 
 def net_overlaps(net: sumolib.net.Net) -> list[tuple[str, str]]:
@@ -49,15 +49,22 @@ def net_overlaps(net: sumolib.net.Net) -> list[tuple[str, str]]:
 
 
 def hdmap_overlaps(hd: HDMap) -> list[tuple[int, int]]:
-    """Pairs of roads (ids) whose road lanes overlap: in the HD map every road lane ends
-    where its junction begins, so lanes of two roads never share ground."""
+    """Pairs of roads (ids) whose road lanes overlap outside the junctions they share: in the
+    HD map a road lane ends where its junction's disc (the trim radius) begins, and the
+    corners of two lanes' ends may meet at its rim, within :data:`RIM` of it."""
     lanes = [lane for lane in hd.lanes.values() if lane.kind == "road"]
     outlines = [_outline(lane.centre, 0.5 * (lane.width + lane.end_width)) for lane in lanes]
     pairs: set = set()
     for i, j in _touching(outlines):
-        a, b = lanes[i].road, lanes[j].road
-        if a != b and outlines[i].intersection(outlines[j]).area > MIN_AREA:
-            pairs.add((min(a, b), max(a, b)))
+        a, b = hd.roads[lanes[i].road], hd.roads[lanes[j].road]
+        if a.id == b.id or (min(a.id, b.id), max(a.id, b.id)) in pairs:
+            continue
+        overlap = outlines[i].intersection(outlines[j])
+        for node in {a.from_node, a.to_node} & {b.from_node, b.to_node}:
+            junction = hd.junctions[node]
+            overlap = overlap.difference(shapely.Point(junction.xy).buffer(junction.radius + RIM))
+        if overlap.area > MIN_AREA:
+            pairs.add((min(a.id, b.id), max(a.id, b.id)))
     return sorted(pairs)
 
 
