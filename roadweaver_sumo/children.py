@@ -11,8 +11,7 @@ lanelet2 check) goes through :func:`popen` or :func:`run`, which
   watchdog process in a session of its own learns each child's process group and kills the
   groups still listed when this process is gone (``_WATCHDOG``);
 * remember it while it runs, so that the SIGTERM and SIGINT handlers of
-  :func:`handle_termination` kill every live child before the interrupted run unwinds (worker
-  threads that wait for a child return at once, and the staging folder can be removed).
+  :func:`handle_termination` kill every live child's group before this process exits.
 
 Linux sends the parent-death signal when the *thread* that started the child ends, so a child
 must be waited for by the thread that started it (every caller here does). Forked workers
@@ -23,25 +22,17 @@ call :func:`die_with_parent` themselves.
 from __future__ import annotations
 
 import ctypes
+import multiprocessing
 import os
 import signal
 import subprocess
 import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from functools import partial
 
 PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
-
-
-class Stopped(KeyboardInterrupt):
-    """The run was stopped by a signal (SIGINT or SIGTERM). A KeyboardInterrupt, so every
-    clean-up that handles Ctrl-C handles a SIGTERM the same way."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
 
 
 def _prctl():
@@ -61,8 +52,6 @@ _PRCTL = _prctl()
 _live: set[subprocess.Popen] = set()
 _watchdog: subprocess.Popen | None = None  # of this process (a forked child starts its own)
 _watchdog_lock = threading.Lock()
-_stopping: int | None = None  # the signal that stopped this process, once one arrived
-_main_in_popen = False  # the main thread is between Popen and remembering the child
 
 
 def die_with_parent(parent_pid: int | None = None) -> None:
@@ -77,25 +66,14 @@ def die_with_parent(parent_pid: int | None = None) -> None:
 
 def popen(args: list[str], **kwargs) -> subprocess.Popen:
     """``subprocess.Popen(args, **kwargs)`` in a session of its own that dies with this
-    process; raises :class:`Stopped` (the child killed) when this process is being stopped."""
-    global _main_in_popen
-    main = threading.current_thread() is threading.main_thread()
+    process."""
     for done in [p for p in list(_live) if p.returncode is not None]:
         _forget(done)
-    if main:  # a signal now must not raise between the fork and remembering the child
-        _main_in_popen = True
-    try:
-        proc = subprocess.Popen(args, start_new_session=True,
-                                preexec_fn=partial(die_with_parent, os.getpid()),  # noqa: PLW1509 - prctl only
-                                **kwargs)
-        _live.add(proc)
-        _tell_watchdog(f"+{proc.pid}")
-    finally:
-        if main:
-            _main_in_popen = False
-    if _stopping is not None:
-        kill(proc)
-        raise Stopped(_stopping)
+    proc = subprocess.Popen(args, start_new_session=True,
+                            preexec_fn=partial(die_with_parent, os.getpid()),  # noqa: PLW1509 - prctl only
+                            **kwargs)
+    _live.add(proc)
+    _tell_watchdog(f"+{proc.pid}")
     return proc
 
 
@@ -183,43 +161,43 @@ def stop_children() -> None:
         _kill_group(proc)
 
 
-def _on_signal(signum: int, frame) -> None:
-    """Kill the children, then raise :class:`Stopped` in the main thread, once: a second
-    signal must not interrupt the clean-up the first one started. Inside :func:`popen`, that
-    raises it after remembering its child."""
-    global _stopping
-    first = _stopping is None
-    _stopping = signum
-    stop_children()
-    if first and not _main_in_popen:
-        raise Stopped(signum)
-
-
 @contextmanager
-def handle_termination() -> Iterator[None]:
-    """While the block runs (in the main thread), SIGTERM and SIGINT kill every child and raise
-    :class:`Stopped`; the previous handlers come back afterwards."""
-    global _stopping
+def handle_termination(before_exit: Callable[[int], None]) -> Iterator[None]:
+    """While the block runs (in the main thread), SIGTERM and SIGINT stop this process at once:
+    every child's process group and every forked worker are killed, ``before_exit(signum)``
+    runs (remove what was being written, say why), and the process exits with 128 + signum.
+
+    It exits rather than raising into the interrupted code: an exception raised by a signal
+    handler is swallowed where it lands in an at-fork hook or a finaliser, which then leaves
+    a lock held (logging's, by a fork's hook) and the run hung. A child started by another
+    thread in that instant dies with this process (its parent-death signal). The previous
+    handlers come back when the block ends."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = {s: signal.signal(s, _on_signal) for s in (signal.SIGTERM, signal.SIGINT)}
+
+    def stop(signum: int, frame) -> None:
+        stop_children()
+        for worker in multiprocessing.active_children():
+            worker.kill()
+        before_exit(signum)
+        os._exit(128 + signum)
+
+    previous = {s: signal.signal(s, stop) for s in (signal.SIGTERM, signal.SIGINT)}
     try:
         yield
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
-        _stopping = None
 
 
 def forget_inherited(parent_pid: int) -> None:
     """In a forked child of ``parent_pid``: the parent's children and signal handlers are not
     this process's; SIGTERM ends it, SIGINT raises KeyboardInterrupt, and it dies with its
     parent."""
-    global _stopping, _watchdog, _watchdog_lock
+    global _watchdog, _watchdog_lock
     _live.clear()
     _watchdog_lock = threading.Lock()  # another thread may have held it at the fork
-    _stopping = None
     if _watchdog is not None:  # the parent's: its end of the pipe must close with the parent
         _watchdog.stdin.close()
         _watchdog = None

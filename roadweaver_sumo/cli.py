@@ -29,6 +29,7 @@ from .allocator import keep_freed_memory
 from .cli_parser import PROG, build_parser
 from .errors import RoadweaverError
 from .spec import ScenarioSpec, parse_size
+from .staging import remove_staged
 
 EXIT_FAILED_CHECKS = 1
 EXIT_BAD_INPUT = 2
@@ -43,15 +44,11 @@ def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = _one_line_warning
     keep_freed_memory()
     try:
-        with children.handle_termination():
+        with children.handle_termination(_stopped):
             return _run(build_parser().parse_args(argv))
     except RoadweaverError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except children.Stopped as exc:
-        what = "terminated" if exc.signum == signal.SIGTERM else "interrupted"
-        print(f"{PROG}: {what}; nothing was left half-written", file=sys.stderr)
-        return 128 + exc.signum
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted; nothing was left half-written", file=sys.stderr)
         return 130
@@ -61,6 +58,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{PROG}: error: internal error ({type(exc).__name__}: {message}); "
               f"please report it with the traceback in {log}", file=sys.stderr)
         return EXIT_INTERNAL_ERROR
+
+
+def _stopped(signum: int) -> None:
+    """A SIGTERM or Ctrl-C, its children already killed: remove what was being written and
+    say so. ``os.write``: the interrupted code may hold the lock of ``sys.stderr``."""
+    remove_staged()
+    what = "terminated" if signum == signal.SIGTERM else "interrupted"
+    os.write(2, f"{PROG}: {what}; nothing was left half-written\n".encode())
 
 
 def _run(args) -> int:

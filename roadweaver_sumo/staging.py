@@ -71,6 +71,13 @@ def scratch_beside(folder: Path) -> Iterator[Path | None]:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+def remove_staged() -> None:
+    """Remove every folder this process is staging (a run stopped by a signal exits without
+    unwinding, see ``children.handle_termination``)."""
+    for folder in _staged:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def scratch_dir() -> Path | None:
     """Where temporary files go: inside the folder this process is staging, so that a killed
     run leaves them only there (removed by the next run); None (the system's temporary
