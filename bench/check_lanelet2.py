@@ -1,7 +1,7 @@
-"""Read our map.osm back with lanelet2 and Tactics2D and route on it (issue 3, part 2).
+"""Read our lanelet2_map.osm back with lanelet2 and Tactics2D and route on it (issue 3, part 2).
 
 Usage:
-  python bench/check_lanelet2.py SCENARIO_DIR ...      # folders with map.osm and/or spec.json
+  python bench/check_lanelet2.py SCENARIO_DIR ...      # folders with lanelet2_map.osm and/or spec.json
   python bench/check_lanelet2.py --densities 10,20,30,40,50,60 --seeds 0-4 --size 2000
 Options: --pairs 1000 (random lanelet pairs for lanelet2), --tactics2d-tasks 100 (searches on
 Tactics2D's own routing graph: its pure-Python Dijkstra takes up to seconds per task on 2 km
@@ -54,17 +54,17 @@ def build_hdmap_for(spec):
 
 
 def cases(args, work: Path):
-    """(name, map.osm, HD map) per scenario folder or sweep point; missing maps are written."""
+    """(name, lanelet2_map.osm, HD map) per scenario folder or sweep point; missing maps are written."""
     from roadweaver_sumo.spec import ScenarioSpec
 
     specs = []
     for folder in args.scenarios:
-        specs.append((ScenarioSpec.from_json_file(folder / "spec.json"), folder / "map.osm"))
+        specs.append((ScenarioSpec.from_json_file(folder / "spec.json"), folder / "lanelet2_map.osm"))
     for density in [float(d) for d in args.densities.split(",")] if not args.scenarios else []:
         for seed in seeds_arg(args.seeds):
             spec = ScenarioSpec(density=density, vehicles=1, seed=seed, style=args.style,
                                 width=args.size, height=args.size)
-            specs.append((spec, work / spec.name / "map.osm"))
+            specs.append((spec, work / spec.name / "lanelet2_map.osm"))
     for spec, osm in specs:
         start = time.perf_counter()
         hd = build_hdmap_for(spec)

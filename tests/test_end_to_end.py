@@ -15,7 +15,7 @@ ARGS = ["make-scenario", "--density", "30", "--vehicles", "60", "--size", "800",
         "--duration", "300", "--seed", "1", "--style", "grid"]
 EXPECTED_FILES = {
     "scenario.sumocfg", "map.net.xml", "demand.rou.xml", "spec.json", "report.json",
-    "netconvert.netccfg", "timing.json", "plain", "map.xodr", "map.osm", "preview.png",
+    "netconvert.netccfg", "timing.json", "plain", "map.xodr", "lanelet2_map.osm", "preview.png",
 }
 
 

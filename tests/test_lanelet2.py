@@ -1,4 +1,4 @@
-"""map.osm in lanelet2 format: structure read back with lxml, and lanelet2 itself when installed."""
+"""lanelet2_map.osm in lanelet2 format: structure read back with lxml, and lanelet2 itself when installed."""
 
 from __future__ import annotations
 
@@ -40,11 +40,11 @@ def hd():
 
 @pytest.fixture(scope="module")
 def osm(hd, tmp_path_factory):
-    return write_lanelet2(hd, tmp_path_factory.mktemp("lanelet2") / "map.osm")
+    return write_lanelet2(hd, tmp_path_factory.mktemp("lanelet2") / "lanelet2_map.osm")
 
 
 class OsmFile:
-    """The parts of a written map.osm the tests look at, keyed by our lane ids."""
+    """The parts of a written lanelet2_map.osm the tests look at, keyed by our lane ids."""
 
     def __init__(self, path):
         root = etree.parse(str(path)).getroot()
@@ -240,7 +240,7 @@ def test_dead_end_uturn_lanelets_are_valid_polygons(tmp_path):
     from test_hdmap import t_junction
 
     hd = build_hdmap(t_junction(), SPEC.geo_origin)
-    path = write_lanelet2(hd, tmp_path / "map.osm")
+    path = write_lanelet2(hd, tmp_path / "lanelet2_map.osm")
     parsed = OsmFile(path)
     for lane in hd.lanes:
         left = [parsed.xy(n, hd.geo_origin) for n in parsed.bound(lane, "left")]

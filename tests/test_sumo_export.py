@@ -204,7 +204,7 @@ def test_parallel_and_sequential_writes_are_identical(tmp_path):
     map_files.write_map_files(hd, tmp_path / "parallel", parallel=True)
     map_files.write_map_files(hd, tmp_path / "sequential", parallel=False)
     written = _digests(tmp_path / "parallel")
-    assert sorted(written) == ["map.osm", "map.xodr", "plain/map.con.xml",
+    assert sorted(written) == ["lanelet2_map.osm", "map.xodr", "plain/map.con.xml",
                                "plain/map.edg.xml", "plain/map.nod.xml"]
     assert written == _digests(tmp_path / "sequential")
 
@@ -220,12 +220,12 @@ def test_either_process_may_write_first_into_a_new_folder(tmp_path, monkeypatch)
 
     monkeypatch.setattr(map_files, "write_plain", late_plain)
     map_files.write_map_files(build_hdmap(town(), GEO_ORIGIN), tmp_path / "new" / "folder")
-    assert (tmp_path / "new" / "folder" / "map.osm").is_file()
+    assert (tmp_path / "new" / "folder" / "lanelet2_map.osm").is_file()
 
 
 @pytest.mark.skipif(not can_fork(), reason="writers only fork where fork exists")
 @pytest.mark.parametrize("writer, finished", [("write_lanelet2", "plain/map.con.xml"),
-                                               ("write_opendrive", "map.osm")])
+                                               ("write_opendrive", "lanelet2_map.osm")])
 def test_an_error_in_either_process_is_raised_here(tmp_path, monkeypatch, writer, finished):
     """lanelet2 is written here, OpenDRIVE by the forked child: either failure is raised, after
     the other process has finished its files."""

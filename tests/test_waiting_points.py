@@ -79,8 +79,8 @@ def test_trips_drawn_from_the_first_net_give_the_final_nets_demand(tmp_path, mon
     build_scenario_files(spec, out, {}, lambda msg: None)
     assert len(drafts) == 1
     assert sorted(p.name for p in out.iterdir()) == [
-        "demand.rou.xml", "map.net.xml", "map.osm", "map.xodr", "netconvert.netccfg", "plain",
-        "scenario.sumocfg", "spec.json"]
+        "demand.rou.xml", "lanelet2_map.osm", "map.net.xml", "map.xodr", "netconvert.netccfg",
+        "plain", "scenario.sumocfg", "spec.json"]
     final = (out / "map.net.xml").read_bytes()
     assert drafts[0] != final and _edges(drafts[0]) == _edges(final)
     alone = tmp_path / "alone"

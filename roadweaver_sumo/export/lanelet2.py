@@ -1,4 +1,4 @@
-"""HD map to a lanelet2-format OpenStreetMap file (``map.osm``).
+"""HD map to a lanelet2-format OpenStreetMap file (``lanelet2_map.osm``).
 
 Every HD map lane (road lanes and junction connectors) becomes one lanelet. lanelet2 derives its
 topology from shared primitives, not from tags, so the file is built around identity:

@@ -21,12 +21,12 @@ from .lanelet2 import write_lanelet2
 from .opendrive import write_opendrive
 from .sumo_plain import write_plain
 
-PLAIN_DIR, XODR_FILE, LANELET2_FILE = "plain", "map.xodr", "map.osm"
+PLAIN_DIR, XODR_FILE, LANELET2_FILE = "plain", "map.xodr", "lanelet2_map.osm"
 CHILD_PLAIN_FILES, PARENT_PLAIN_FILES = ("map.nod.xml", "map.con.xml"), ("map.edg.xml",)
 
 
 def write_map_files(hd: HDMap, folder: Path, *, parallel: bool = True) -> None:
-    """``folder/plain/``, ``folder/map.xodr`` and ``folder/map.osm``; an error in any writer is
+    """``folder/plain/``, ``folder/map.xodr`` and ``folder/lanelet2_map.osm``; an error in any writer is
     raised here, after the child has ended."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)  # before the child: either process may be first

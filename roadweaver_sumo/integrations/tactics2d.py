@@ -1,4 +1,4 @@
-"""Load our lanelet2 ``map.osm`` into Tactics2D (PyPI ``tactics2d``, GPL-3.0) with lane topology.
+"""Load our lanelet2 ``lanelet2_map.osm`` into Tactics2D (PyPI ``tactics2d``, GPL-3.0) with lane topology.
 
 Tactics2D's ``OSMParser(lanelet2=True)`` reads lanelets, lines and regulatory elements but fills
 no successor, predecessor or neighbour sets, so its ``Router`` has nothing to plan on (NOTES.md).
@@ -30,13 +30,13 @@ if TYPE_CHECKING:
     from tactics2d.map.element import Map
     from tactics2d.routing import Route, Router
 
-MAP_FILE = "map.osm"
+MAP_FILE = "lanelet2_map.osm"
 SPEC_FILE = "spec.json"
 
 
 def load_tactics2d_map(source: str | Path, hd: HDMap | None = None,
                        origin: tuple[float, float] | None = None) -> Map:
-    """Parse a scenario folder's ``map.osm`` (or that file itself) into a Tactics2D ``Map``
+    """Parse a scenario folder's ``lanelet2_map.osm`` (or that file itself) into a Tactics2D ``Map``
     whose lanes carry successor, predecessor and left/right neighbour sets, so that
     ``tactics2d.routing.Router`` plans on it.
 

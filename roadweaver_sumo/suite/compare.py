@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 
 #: Numbers within 0.1 mm or a relative 1e-7, whichever is larger (coordinates, lengths and
-#: offsets in metres, headings in radians). map.osm holds degrees: within 1e-9° (0.1 mm).
+#: offsets in metres, headings in radians). lanelet2_map.osm holds degrees: within 1e-9° (0.1 mm).
 ABS_TOL, REL_TOL, DEGREE_TOL = 1e-4, 1e-7, 1e-9
 #: A preview may differ in this share of its pixels (antialiasing of a line moved by noise).
 PIXEL_SHARE = 0.002

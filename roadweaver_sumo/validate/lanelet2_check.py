@@ -1,4 +1,4 @@
-"""Read a lanelet2-format ``map.osm`` back with the real lanelet2 library and measure routing.
+"""Read a lanelet2-format ``lanelet2_map.osm`` back with the real lanelet2 library and measure routing.
 
 lanelet2 (PyPI ``lanelet2``) can take the interpreter down on malformed maps (NOTES.md), so
 :func:`check_lanelet2` runs the measurement in a child process and turns a crash into a result.
@@ -6,7 +6,7 @@ The child loads the map with ``LocalCartesianProjector`` at the map's geo origin
 transverse Mercator agrees with it to well under a millimetre; UTM would not), builds a
 ``RoutingGraph`` with German traffic rules for vehicles and plans between random lanelet pairs.
 
-Usage as a script: ``python -m roadweaver_sumo.validate.lanelet2_check map.osm LAT LON``.
+Usage as a script: ``python -m roadweaver_sumo.validate.lanelet2_check lanelet2_map.osm LAT LON``.
 """
 
 from __future__ import annotations
