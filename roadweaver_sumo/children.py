@@ -178,8 +178,11 @@ def handle_termination(before_exit: Callable[[int], None]) -> Iterator[None]:
 
     def stop(signum: int, frame) -> None:
         stop_children()
-        for worker in multiprocessing.active_children():
+        workers = multiprocessing.active_children()
+        for worker in workers:
             worker.kill()
+        for worker in workers:  # gone before anything they were writing is removed
+            worker.join(1.0)
         before_exit(signum)
         os._exit(128 + signum)
 

@@ -12,6 +12,7 @@ import os
 import re
 import shutil
 import tempfile
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -71,11 +72,16 @@ def scratch_beside(folder: Path) -> Iterator[Path | None]:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-def remove_staged() -> None:
+def remove_staged(patience_s: float = 2.0) -> None:
     """Remove every folder this process is staging (a run stopped by a signal exits without
-    unwinding, see ``children.handle_termination``)."""
+    unwinding, see ``children.handle_termination``). Children killed a moment ago may still
+    add a file while a folder is removed, so removal is retried for up to ``patience_s``."""
+    deadline = time.monotonic() + patience_s
     for folder in _staged:
         shutil.rmtree(folder, ignore_errors=True)
+        while folder.exists() and time.monotonic() < deadline:
+            time.sleep(0.02)
+            shutil.rmtree(folder, ignore_errors=True)
 
 
 def scratch_dir() -> Path | None:
