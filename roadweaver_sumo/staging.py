@@ -88,7 +88,7 @@ def scratch_dir() -> Path | None:
     """Where temporary files go: inside the folder this process is staging, so that a killed
     run leaves them only there (removed by the next run); None (the system's temporary
     folder) when nothing is staged."""
-    return _staged[-1] if _staged else None
+    return _staged[-1].resolve() if _staged else None  # absolute: tools run in other folders
 
 
 def remove_stale(out_dir: Path) -> list[Path]:
