@@ -31,6 +31,7 @@ def build_hdmap(
         width=float(G.graph["width"]),
         height=float(G.graph["height"]),
         geo_origin=geo_origin if geo_origin is not None else G.graph.get("geo_origin"),
+        graph=G,
     )
     hd.roads = make_roads(G)  # RefineRoadGraph, AssignLaneConfig
     nodes = {n: G.nodes[n]["xy"] for n in G.nodes}

@@ -17,6 +17,7 @@ Conventions shared by all exporters, so that none of them re-derives topology:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -131,6 +132,7 @@ class HDMap:
     junctions: dict[int, Junction] = field(default_factory=dict)
     lanes: dict[str, Lane] = field(default_factory=dict)
     geo_origin: tuple[float, float] | None = None  # (lat, lon) of the local origin (0, 0)
+    graph: Any = field(default=None, repr=False)  # the RoadGraph (networkx) it was built from
 
     def road_lanes(self) -> list[Lane]:
         """Road lanes (not connectors), in id order."""
