@@ -350,3 +350,13 @@ def test_validate_keeps_its_temporary_files_beside_the_scenario(tmp_path):
         assert scratch_dir() == scratch and scratch.parent == tmp_path
         assert not stale.exists()
     assert scratch_dir() is None and sorted(p.name for p in tmp_path.iterdir()) == ["scn"]
+
+
+def test_temporary_files_of_a_relative_output_are_found_from_any_folder(tmp_path, monkeypatch):
+    """SUMO's tools run inside the staging folder: a relative scratch path would point
+    elsewhere there."""
+    from roadweaver_sumo.staging import scratch_dir
+
+    monkeypatch.chdir(tmp_path)
+    with staged_folder(Path("scenarios/scn"), force=False) as tmp:
+        assert scratch_dir().is_absolute() and scratch_dir() == tmp.resolve()
