@@ -37,37 +37,36 @@ def clearance(class_a: str, class_b: str) -> float:
 
 def roads_too_close(G: nx.Graph) -> list[tuple[tuple, tuple]]:
     """Pairs of roads (edges, each sorted) that come within their clearance of each other
-    anywhere but on the way into a junction: the overlaps a driver would see."""
+    outside the junction areas of both roads' junction nodes (degree >= 2): discs of
+    :data:`JUNCTION_REACH` times the clearance. A dead end is no junction: a dead end whose
+    last metres lie on another road is exactly such an overlap.
+
+    All pairs are measured at once (shapely's array functions): the pairs whose free parts
+    (outside the discs) stay a clearance apart go first, the rest are confirmed by the
+    length of road inside the other's clearance."""
     roads = sorted_edge_list(G)
     if len(roads) < 2:
         return []
     edges = [(u, v) for u, v, _ in roads]
-    classes = [data["road_class"] for _, _, data in roads]
     lines = np.array([shapely.LineString(data["coords"]) for _, _, data in roads])
-    widest = 2 * max(cfg.half_width for cfg in LANE_CONFIGS.values()) + MARGIN
-    left, right = shapely.STRtree(lines).query(lines, predicate="dwithin", distance=widest)
+    half = np.array([LANE_CONFIGS[data["road_class"]].half_width for _, _, data in roads])
+    junctions = np.array([shapely.MultiPoint([G.nodes[n]["xy"] for n in e if G.degree(n) >= 2])
+                          for e in edges])
+    widest = 2 * half.max() + MARGIN
+    i, j = shapely.STRtree(lines).query(lines, predicate="dwithin", distance=widest)
+    i, j = i[i < j], j[i < j]
+    reach = half[i] + half[j] + MARGIN
+    near = shapely.distance(lines[i], lines[j]) < reach
+    i, j, reach = i[near], j[near], reach[near]
+    area = shapely.buffer(shapely.union(junctions[i], junctions[j]), JUNCTION_REACH * reach,
+                          quad_segs=4)
+    free_i, free_j = shapely.difference(lines[i], area), shapely.difference(lines[j], area)
+    near = (shapely.distance(free_i, lines[j]) < reach) | (shapely.distance(free_j, lines[i]) < reach)
     pairs = []
-    for i, j in zip(left.tolist(), right.tolist(), strict=True):
-        if i >= j:
-            continue
-        reach = clearance(classes[i], classes[j])
-        if shapely.distance(lines[i], lines[j]) >= reach:
-            continue
-        if _overlap_away_from_junctions(G, edges[i], lines[i], edges[j], lines[j], reach):
-            pairs.append((edges[i], edges[j]))
+    for a, b, r, fa, fb in zip(i[near].tolist(), j[near].tolist(), reach[near].tolist(),
+                               free_i[near], free_j[near], strict=True):
+        inside = max(fa.intersection(lines[b].buffer(r, quad_segs=4)).length,
+                     fb.intersection(lines[a].buffer(r, quad_segs=4)).length)
+        if inside >= MIN_CONTACT:
+            pairs.append((edges[a], edges[b]))
     return pairs
-
-
-def _overlap_away_from_junctions(G: nx.Graph, a: tuple, line_a, b: tuple, line_b,
-                                 reach: float) -> bool:
-    """Whether a stretch of one road lies within ``reach`` of the other outside the junction
-    areas of both roads' junction nodes (degree >= 2): discs of :data:`JUNCTION_REACH` times
-    ``reach``. A dead end is no junction: a dead end whose last metres lie on another road is
-    exactly such an overlap."""
-    junctions = shapely.MultiPoint([G.nodes[n]["xy"] for n in {*a, *b} if G.degree(n) >= 2])
-    area = junctions.buffer(JUNCTION_REACH * reach, quad_segs=4)
-    for line, other in ((line_a, line_b), (line_b, line_a)):
-        contact = line.intersection(other.buffer(reach, quad_segs=4)).difference(area)
-        if any(piece.length >= MIN_CONTACT for piece in shapely.get_parts(contact)):
-            return True
-    return False
