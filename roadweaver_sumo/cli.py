@@ -295,9 +295,9 @@ def _check_train_paths(args) -> None:
 def _train(args) -> int:
     from dataclasses import replace
 
-    _check_train_paths(args)
-    if importlib.util.find_spec("torch") is None:
+    if importlib.util.find_spec("torch") is None:  # first: no other answer helps without it
         raise RoadweaverError("training needs torch: pip install 'roadweaver-sumo[train]'")
+    _check_train_paths(args)
     from .generative import settings as defaults
     from .generative import training
 
