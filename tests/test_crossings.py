@@ -50,6 +50,13 @@ def test_roads_leaving_a_junction_side_by_side_are_too_close():
     assert roads_too_close(G) != []
 
 
+def test_a_bend_node_of_one_road_is_no_junction_of_another():
+    """An arterial bends (a node of degree 2) 8 m from a collector it never meets."""
+    G = _graph(([(15, 100), (15, 900)], "collector"), ([(200, 300), (23, 500)], "arterial"),
+               ([(23, 500), (200, 700)], "arterial"))
+    assert roads_too_close(G) != []
+
+
 def test_clean_up_removes_the_lesser_of_two_roads_too_close():
     G = _graph(([(100, 300), (900, 300)], "arterial"), ([(100, 305), (900, 305)], "local"),
                ([(100, 300), (100, 700), (900, 700), (900, 300)], "collector"))

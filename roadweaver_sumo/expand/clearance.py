@@ -30,15 +30,21 @@ MIN_CONTACT = 0.5  # metres: shorter contacts are numerical touches at a junctio
 JUNCTION_REACH = 2.0
 
 
+def half_width(road_class: str) -> float:
+    """Metres from a road's centreline to the outer edge of its lanes."""
+    return LANE_CONFIGS[road_class].half_width
+
+
 def clearance(class_a: str, class_b: str) -> float:
     """Least distance in metres between the centrelines of two roads of these classes."""
-    return LANE_CONFIGS[class_a].half_width + LANE_CONFIGS[class_b].half_width + MARGIN
+    return half_width(class_a) + half_width(class_b) + MARGIN
 
 
 def roads_too_close(G: nx.Graph) -> list[tuple[tuple, tuple]]:
     """Pairs of roads (edges, each sorted) that come within their clearance of each other
-    outside the junction areas of both roads' junction nodes (degree >= 2): discs of
-    :data:`JUNCTION_REACH` times the clearance. A dead end is no junction: a dead end whose
+    outside the junction areas near them: discs of :data:`JUNCTION_REACH` times the clearance
+    around the nodes they share and the intersections (degree >= 3) of either. A bend node
+    (degree 2) of one road is no junction of the other, nor is a dead end: a dead end whose
     last metres lie on another road is exactly such an overlap.
 
     All pairs are measured at once (shapely's array functions): the pairs whose free parts
@@ -50,16 +56,13 @@ def roads_too_close(G: nx.Graph) -> list[tuple[tuple, tuple]]:
     edges = [(u, v) for u, v, _ in roads]
     lines = np.array([shapely.LineString(data["coords"]) for _, _, data in roads])
     half = np.array([LANE_CONFIGS[data["road_class"]].half_width for _, _, data in roads])
-    junctions = np.array([shapely.MultiPoint([G.nodes[n]["xy"] for n in e if G.degree(n) >= 2])
-                          for e in edges])
     widest = 2 * half.max() + MARGIN
     i, j = shapely.STRtree(lines).query(lines, predicate="dwithin", distance=widest)
     i, j = i[i < j], j[i < j]
     reach = half[i] + half[j] + MARGIN
     near = shapely.distance(lines[i], lines[j]) < reach
     i, j, reach = i[near], j[near], reach[near]
-    area = shapely.buffer(shapely.union(junctions[i], junctions[j]), JUNCTION_REACH * reach,
-                          quad_segs=4)
+    area = shapely.buffer(_junctions(G, edges, i, j), JUNCTION_REACH * reach, quad_segs=4)
     free_i, free_j = shapely.difference(lines[i], area), shapely.difference(lines[j], area)
     near = (shapely.distance(free_i, lines[j]) < reach) | (shapely.distance(free_j, lines[i]) < reach)
     pairs = []
@@ -70,3 +73,15 @@ def roads_too_close(G: nx.Graph) -> list[tuple[tuple, tuple]]:
         if inside >= MIN_CONTACT:
             pairs.append((edges[a], edges[b]))
     return pairs
+
+
+def _junctions(G: nx.Graph, edges: list[tuple], i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """Per pair of roads (``edges[i]``, ``edges[j]``) the junction nodes around which they may
+    come close: the nodes they share (but dead ends) and the intersections of either."""
+    crossing = [[n for n in e if G.degree(n) >= 3] for e in edges]
+    points = []
+    for a, b in zip(i.tolist(), j.tolist(), strict=True):
+        shared = [n for n in set(edges[a]) & set(edges[b]) if G.degree(n) >= 2]
+        points.append(shapely.MultiPoint([G.nodes[n]["xy"]
+                                          for n in {*crossing[a], *crossing[b], *shared}]))
+    return np.array(points)

@@ -32,7 +32,7 @@ from ..roadgraph import (
     sorted_edge_list,
 )
 from ..skeleton.model import PERIMETER_INSET
-from .clearance import roads_too_close
+from .clearance import half_width, roads_too_close
 
 GRID = 0.01  # noding precision, metres
 CLASS_RANK = {name: rank for rank, name in enumerate(reversed(ROAD_CLASSES))}  # local=0
@@ -884,21 +884,25 @@ def smooth_bends(G: nx.Graph, max_turn_deg: float = 30.0, radius: float = 20.0) 
     for k in np.flatnonzero(_maybe_sharp([data["coords"] for data in roads], max_turn_deg)):
         data = roads[k]
         data["coords"] = round_corners(data["coords"], max_turn_deg, radius)
+    straighten_road_ends(G)  # fillets of bends close to a junction
 
 
-#: Roads leave their junctions straight for this many metres. A vertex a metre from the node
-#: (left by a merge of close junctions or a snapped end) makes a hook that SUMO takes for the
-#: road's direction: netconvert then cut a road's lanes past the junction's centre, on top of
-#: another road's, and the lanes offset from the hook fold over.
+#: Roads leave their junctions straight for this many metres beyond their half width. A
+#: vertex a metre from the node (left by a merge of close junctions or a snapped end), or a
+#: bend rounded just before the junction, makes a hook that SUMO takes for the road's
+#: direction: netconvert then cut a road's lanes past the junction's centre, or let them
+#: curve into a neighbour's, and lanes offset from the hook fold over.
 STRAIGHT_END = 5.0
 
 
-def straighten_road_ends(G: nx.Graph, reach: float = STRAIGHT_END) -> None:
-    """Drop every vertex of a road within ``reach`` metres (along it) of either end node."""
+def straighten_road_ends(G: nx.Graph) -> None:
+    """Drop every vertex of a road within :data:`STRAIGHT_END` plus the road's half width
+    (metres along it) of either end node."""
     for _, _, data in edge_list(G):
         c = data["coords"]
         if len(c) < 3:
             continue
+        reach = STRAIGHT_END + half_width(data["road_class"])
         step = np.hypot(*np.diff(c, axis=0).T)
         if step[0] >= reach and step[-1] >= reach:
             continue
