@@ -57,6 +57,17 @@ def test_a_bend_node_of_one_road_is_no_junction_of_another():
     assert roads_too_close(G) != []
 
 
+def test_a_road_may_not_pass_close_to_another_beside_its_own_junction():
+    """A junction 11 m from a collector it does not join; an arterial leaves it and runs
+    9.4 m from the collector (their clearance is 11.25 m) 12.5 m from the junction: the
+    junction's area covers one clearance around it, not two (learned 2.5 km mixed density
+    41 seed 5179)."""
+    G = _graph(([(0, 500), (1000, 500)], "collector"),
+               ([(500, 489), (487.6, 490.6), (465.6, 482.1), (420, 440)], "arterial"),
+               ([(500, 489), (500, 300)], "local"), ([(500, 489), (700, 330)], "local"))
+    assert roads_too_close(G) != []
+
+
 def test_clean_up_removes_the_lesser_of_two_roads_too_close():
     G = _graph(([(100, 300), (900, 300)], "arterial"), ([(100, 305), (900, 305)], "local"),
                ([(100, 300), (100, 700), (900, 700), (900, 300)], "collector"))

@@ -42,8 +42,7 @@ def clearance(class_a: str, class_b: str) -> float:
 
 def roads_too_close(G: nx.Graph) -> list[tuple[tuple, tuple]]:
     """Pairs of roads (edges, each sorted) that come within their clearance of each other
-    outside the junction areas near them: discs of :data:`JUNCTION_REACH` times the clearance
-    around the nodes they share and the intersections (degree >= 3) of either. A bend node
+    outside the junction areas near them (:func:`_junction_areas`). A bend node
     (degree 2) of one road is no junction of the other, nor is a dead end: a dead end whose
     last metres lie on another road is exactly such an overlap.
 
@@ -62,7 +61,7 @@ def roads_too_close(G: nx.Graph) -> list[tuple[tuple, tuple]]:
     reach = half[i] + half[j] + MARGIN
     near = shapely.distance(lines[i], lines[j]) < reach
     i, j, reach = i[near], j[near], reach[near]
-    area = shapely.buffer(_junctions(G, edges, i, j), JUNCTION_REACH * reach, quad_segs=4)
+    area = _junction_areas(G, edges, i, j, reach)
     free_i, free_j = shapely.difference(lines[i], area), shapely.difference(lines[j], area)
     near = (shapely.distance(free_i, lines[j]) < reach) | (shapely.distance(free_j, lines[i]) < reach)
     pairs = []
@@ -75,13 +74,19 @@ def roads_too_close(G: nx.Graph) -> list[tuple[tuple, tuple]]:
     return pairs
 
 
-def _junctions(G: nx.Graph, edges: list[tuple], i: np.ndarray, j: np.ndarray) -> np.ndarray:
-    """Per pair of roads (``edges[i]``, ``edges[j]``) the junction nodes around which they may
-    come close: the nodes they share (but dead ends) and the intersections of either."""
-    crossing = [[n for n in e if G.degree(n) >= 3] for e in edges]
-    points = []
-    for a, b in zip(i.tolist(), j.tolist(), strict=True):
-        shared = [n for n in set(edges[a]) & set(edges[b]) if G.degree(n) >= 2]
-        points.append(shapely.MultiPoint([G.nodes[n]["xy"]
-                                          for n in {*crossing[a], *crossing[b], *shared}]))
-    return np.array(points)
+def _junction_areas(G: nx.Graph, edges: list[tuple], i: np.ndarray, j: np.ndarray,
+                    reach: np.ndarray) -> np.ndarray:
+    """Per pair of roads (``edges[i]``, ``edges[j]``, clearance ``reach``) the ground around
+    junctions where they may come close: :data:`JUNCTION_REACH` clearances around the nodes
+    they share (but dead ends), where they leave a junction side by side, and one clearance
+    around the other intersections of either (a road's own junction is no licence for a
+    passing road to run close to it beyond that)."""
+    crossing = [{n for n in e if G.degree(n) >= 3} for e in edges]
+    areas = []
+    for a, b, r in zip(i.tolist(), j.tolist(), reach.tolist(), strict=True):
+        shared = {n for n in set(edges[a]) & set(edges[b]) if G.degree(n) >= 2}
+        own = (crossing[a] | crossing[b]) - shared
+        areas.append(shapely.union(
+            shapely.MultiPoint([G.nodes[n]["xy"] for n in shared]).buffer(JUNCTION_REACH * r, 4),
+            shapely.MultiPoint([G.nodes[n]["xy"] for n in own]).buffer(r, 4)))
+    return np.array(areas)
