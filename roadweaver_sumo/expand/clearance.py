@@ -61,8 +61,7 @@ def roads_too_close(G: nx.Graph) -> list[tuple[tuple, tuple]]:
     reach = half[i] + half[j] + MARGIN
     near = shapely.distance(lines[i], lines[j]) < reach
     i, j, reach = i[near], j[near], reach[near]
-    area = _junction_areas(G, edges, i, j, reach)
-    free_i, free_j = shapely.difference(lines[i], area), shapely.difference(lines[j], area)
+    free_i, free_j = _outside_junctions(G, edges, i, j, reach, lines)
     near = (shapely.distance(free_i, lines[j]) < reach) | (shapely.distance(free_j, lines[i]) < reach)
     pairs = []
     for a, b, r, fa, fb in zip(i[near].tolist(), j[near].tolist(), reach[near].tolist(),
@@ -74,19 +73,27 @@ def roads_too_close(G: nx.Graph) -> list[tuple[tuple, tuple]]:
     return pairs
 
 
-def _junction_areas(G: nx.Graph, edges: list[tuple], i: np.ndarray, j: np.ndarray,
-                    reach: np.ndarray) -> np.ndarray:
-    """Per pair of roads (``edges[i]``, ``edges[j]``, clearance ``reach``) the ground around
-    junctions where they may come close: :data:`JUNCTION_REACH` clearances around the nodes
-    they share (but dead ends), where they leave a junction side by side, and one clearance
-    around the other intersections of either (a road's own junction is no licence for a
-    passing road to run close to it beyond that)."""
+def _outside_junctions(G: nx.Graph, edges: list[tuple], i: np.ndarray, j: np.ndarray,
+                       reach: np.ndarray, lines: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per pair of roads (``edges[i]``, ``edges[j]``, clearance ``reach``) both roads less the
+    ground around junctions where they may come close: :data:`JUNCTION_REACH` clearances
+    around the nodes they share (but dead ends), where they leave a junction side by side,
+    and one clearance around the other intersections of either (a road's own junction is no
+    licence for a passing road to run close to it beyond that). A pair has at most four
+    such nodes: the discs are cut away slot by slot, all pairs at once."""
     crossing = [{n for n in e if G.degree(n) >= 3} for e in edges]
-    areas = []
-    for a, b, r in zip(i.tolist(), j.tolist(), reach.tolist(), strict=True):
+    centre = np.full((len(i), 4, 2), np.nan)
+    radius = np.zeros((len(i), 4))
+    for k, (a, b, r) in enumerate(zip(i.tolist(), j.tolist(), reach.tolist(), strict=True)):
         shared = {n for n in set(edges[a]) & set(edges[b]) if G.degree(n) >= 2}
-        own = (crossing[a] | crossing[b]) - shared
-        areas.append(shapely.union(
-            shapely.MultiPoint([G.nodes[n]["xy"] for n in shared]).buffer(JUNCTION_REACH * r, 4),
-            shapely.MultiPoint([G.nodes[n]["xy"] for n in own]).buffer(r, 4)))
-    return np.array(areas)
+        discs = [(n, JUNCTION_REACH * r) for n in sorted(shared)]
+        discs += [(n, r) for n in sorted((crossing[a] | crossing[b]) - shared)]
+        for slot, (n, size) in enumerate(discs):
+            centre[k, slot], radius[k, slot] = G.nodes[n]["xy"], size
+    free_i, free_j = lines[i].copy(), lines[j].copy()
+    for slot in range(4):
+        has = ~np.isnan(centre[:, slot, 0])
+        disc = shapely.buffer(shapely.points(centre[has, slot]), radius[has, slot], quad_segs=4)
+        free_i[has] = shapely.difference(free_i[has], disc)
+        free_j[has] = shapely.difference(free_j[has], disc)
+    return free_i, free_j
