@@ -271,9 +271,10 @@ def netconvert_reimport(xodr: Path, work: Path) -> dict:
     kinds = Counter(re.sub(r"-?\d+(\.\d+)?", "N", re.sub(r"'[^']*'", "'*'", ln[9:]))
                     for ln in out.splitlines() if ln.startswith("Warning: "))
     errors = [ln for ln in out.splitlines() if ln.startswith("Error:")]
-    sharp = sum(v for k, v in kinds.items() if "sharp turn" in k)
-    return {"rc": rc, "warnings": dict(kinds), "sharp_turns": sharp,
-            "problem": f"exit {rc}, {sharp} sharp turns {errors[:1]}" if rc or sharp else None}
+    sharp = [ln[9:] for ln in out.splitlines() if "sharp turn" in ln]  # radius, edge = road
+    return {"rc": rc, "warnings": dict(kinds), "sharp_turns": len(sharp),
+            "problem": f"exit {rc}, {len(sharp)} sharp turns {sharp[:2]} {errors[:1]}"
+            if rc or sharp else None}
 
 
 def check_folder(folder: Path, qc_python: str | None, esmini_roads: int) -> dict:
