@@ -7,7 +7,6 @@ connector), a degree-2 node and bent roads. XSD and ASAM checks need their own v
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import networkx as nx
@@ -17,13 +16,7 @@ from lxml import etree
 from scipy.integrate import quad
 
 from roadweaver_sumo.expand import expand_skeleton
-from roadweaver_sumo.export.opendrive import _num, _rows, reference_line, write_opendrive
-from roadweaver_sumo.export.opendrive_geometry import (
-    END_LINE,
-    MAX_DEVIATION,
-    MIN_RADIUS,
-    fillet_plans,
-)
+from roadweaver_sumo.export.opendrive import _num, _rows, write_opendrive
 from roadweaver_sumo.hdmap import build_hdmap, lane_reachability
 from roadweaver_sumo.metrics import road_node_count
 from roadweaver_sumo.roadgraph import add_road, new_road_graph
@@ -196,7 +189,7 @@ def test_geometry_lengths_are_true_lengths(exported):
         for prev, nxt in zip(xr.geometries, xr.geometries[1:]):
             end = reference_pose(xr, float(nxt.get("s")) - 1e-12)
             assert math.dist(end[:2], (float(nxt.get("x")), float(nxt.get("y")))) < 1e-6
-        line = reference_line(hd.roads[int(name[1:])]) if name.startswith("r") \
+        line = hd.roads[int(name[1:])].reference[0] if name.startswith("r") \
             else hd.lanes[name].bezier[[0, -1]]
         assert math.dist(reference_pose(xr, 0.0)[:2], line[0]) < 1e-6
         assert math.dist(reference_pose(xr, xr.length)[:2], line[-1]) < 1e-6
@@ -319,71 +312,3 @@ def test_compiled_number_rows_are_what_python_formats(decimals):
     template = ' a="{}" b="{}"/>'
     assert _rows(template, values, decimals) == [
         template.format(_num(a, decimals), _num(b, decimals)) for a, b in values.tolist()]
-
-
-def _end_pose(piece) -> tuple[float, float, float]:
-    """Position and heading at the end of a line or arc piece."""
-    if piece.kind == "line":
-        return (piece.x + piece.length * math.cos(piece.hdg),
-                piece.y + piece.length * math.sin(piece.hdg), piece.hdg)
-    k, hdg = piece.curvature, piece.hdg + piece.length * piece.curvature
-    return (piece.x + (math.sin(hdg) - math.sin(piece.hdg)) / k,
-            piece.y - (math.cos(hdg) - math.cos(piece.hdg)) / k, hdg)
-
-
-def _tight_lines() -> list[np.ndarray]:
-    """Reference lines with the corners that gave arcs of decimetres: a bend of 20 cm steps
-    (radius 1 m); a curve cut 0.3 m before a vertex at both ends (as the lane section's cut
-    leaves them); a 0.3 m jog on a gentle bend; and, last, one corner 0.4 m from the end, which no easing within
-    tolerance can widen."""
-    bend = [(30.0 + math.sin(a), 1.0 - math.cos(a)) for a in np.linspace(0.0, math.pi / 2, 9)]
-    curve = [(0.3 + 40.0 * math.sin(a), 40.0 - 40.0 * math.cos(a))
-             for a in np.radians(np.arange(0.0, 50.0, 7.0))]
-    end = np.array(curve[-1]) + 0.3 * np.array([math.cos(np.radians(49.0)),
-                                                math.sin(np.radians(49.0))])
-    return [np.array([(0.0, 0.0), *bend, (31.0, 30.0)]),
-            np.array([(0.0, 0.0), *curve, tuple(end)]),
-            np.array([(0.0, 0.0), (10.0, 0.5), (20.0, 0.5), (20.5, 0.8), (30.0, 0.8),
-                      (40.0, 0.3)]),
-            np.array([(0.0, 0.0), (0.4, 0.0), (30.0, 5.0)])]
-
-
-def test_fillets_are_no_tighter_than_a_car_turns_and_keep_the_ends():
-    """pyxodr fails on arcs of under ~1.5 m radius, and netconvert reads a sharp turn where a
-    road ends in an arc: every arc that easing can widen is at least MIN_RADIUS, every plan
-    starts and ends with a line, and the plan is G1 from the first vertex along the first
-    segment to the last vertex along the last segment (lane ends stay where the HD map has
-    them)."""
-    lines = _tight_lines()
-    plans = fillet_plans(lines)
-    for plan in plans[:-1]:
-        assert all(abs(p.curvature) <= 1.0 / MIN_RADIUS + 1e-12 for p in plan)
-    assert max(abs(p.curvature) for p in plans[-1]) > 1.0 / MIN_RADIUS  # as tight as it was
-    for line, plan in zip(lines, plans, strict=True):
-        assert plan[0].kind == plan[-1].kind == "line"
-        assert (plan[0].x, plan[0].y) == tuple(line[0])
-        first, last = np.diff(line[:2], axis=0)[0], np.diff(line[-2:], axis=0)[0]
-        assert plan[0].hdg == pytest.approx(math.atan2(first[1], first[0]), abs=1e-12)
-        for before, after in itertools.pairwise(plan):
-            x, y, hdg = _end_pose(before)
-            assert (after.x, after.y) == pytest.approx((x, y), abs=1e-9)
-            assert math.remainder(after.hdg - hdg, math.tau) == pytest.approx(0.0, abs=1e-9)
-            assert after.s == pytest.approx(before.s + before.length, abs=1e-9)
-        x, y, hdg = _end_pose(plan[-1])
-        assert (x, y) == pytest.approx(tuple(line[-1]), abs=1e-9)
-        assert math.remainder(hdg - math.atan2(last[1], last[0]), math.tau) == pytest.approx(
-            0.0, abs=1e-9)
-    (bend,) = fillet_plans(lines[:1])  # the bend still turns by a quarter turn, on arcs
-    assert sum(p.length * p.curvature for p in bend) == pytest.approx(math.pi / 2)
-
-
-def test_fillets_end_straight_and_stay_near_the_corner():
-    """A road ends with END_LINE of line where its last segment is long enough, and an arc
-    between long segments stays within MAX_DEVIATION of the corner it replaces."""
-    (short_end,) = fillet_plans([np.array([(0.0, 0.0), (50.0, 0.0), (52.0, 2.0)])])
-    assert [p.kind for p in short_end] == ["line", "arc", "line"]
-    assert short_end[-1].length == pytest.approx(END_LINE)
-    (gentle,) = fillet_plans([np.array([(0.0, 0.0), (120.0, 0.0), (240.0, 30.0)])])
-    arc = gentle[1]
-    radius, half_turn = 1.0 / arc.curvature, arc.length * arc.curvature / 2.0
-    assert radius * (1.0 / math.cos(half_turn) - 1.0) == pytest.approx(MAX_DEVIATION)

@@ -1,7 +1,7 @@
 """HD map to ASAM OpenDRIVE 1.7 (``map.xodr``), written from the HD map's lane graph only.
 
 * Every HD map road becomes a ``<road>`` (same id, name ``r<id>``) whose reference line is the
-  road centreline within its lane section, as G1 lines and arcs (``opendrive_geometry``);
+  HD map's reference line, lines and arcs (``hdmap.reference``), written as they are;
   ``f`` lanes are right lanes ``-1..-n``, ``b`` lanes left lanes ``1..n`` (HD map index 0, the
   outermost lane, is ``-n`` / ``n``). Both ends link to junctions (chapter "Road linkage").
 * Every connector lane becomes a one-lane connecting road (ids after the roads, name = the
@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 
 from ..compiled import B1_2D, I8, I8_2D, U1_1D, compiled
-from ..hdmap.geometry import cut
 from ..hdmap.model import DIRECTIONS, HDMap, Lane, Road
-from .opendrive_geometry import DECIMALS, Piece, bezier_pieces, fillet_plans
+from ..hdmap.reference import Piece
+from .opendrive_geometry import DECIMALS, bezier_pieces
 from .xmltext import Block, Element, PlacedBlock, cdata, escape, leaf, sub, write
 
 CURVATURE_DECIMALS = 15  # an arc's end moves by length^2 / 2 times the curvature's rounding
@@ -56,8 +56,7 @@ def opendrive_tree(hd: HDMap) -> Element:
     """The ``<OpenDRIVE>`` element of ``hd``: header, roads, connecting roads, controllers,
     junctions, in that (schema) order."""
     rids = sorted(hd.roads)
-    plans = dict(zip(rids, fillet_plans([reference_line(hd.roads[rid]) for rid in rids]),
-                     strict=True))
+    plans = {rid: hd.roads[rid].plan for rid in rids}
     connecting = connecting_road_ids(hd)
     junctions = junction_ids(hd)
     signals, controllers = _traffic_lights(hd, plans)
@@ -81,12 +80,6 @@ def opendrive_tree(hd: HDMap) -> Element:
         if hd.junctions[jid].connectors:
             root.append(_junction(hd, jid, junctions[jid], connecting))
     return root
-
-
-def reference_line(road: Road) -> np.ndarray:
-    """The road centreline within its lane section: the HD map lanes' reference line."""
-    section = road.sections[0]
-    return cut(road.centreline, section.s_start, section.s_end)
 
 
 def connecting_road_ids(hd: HDMap) -> dict[str, int]:

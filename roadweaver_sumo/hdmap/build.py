@@ -6,7 +6,7 @@ import networkx as nx
 
 from ..forked import map_shared
 from .junctions import add_connectors, make_junctions
-from .lanes import build_road_lanes, lane_ends, make_roads
+from .lanes import build_road_lanes, lane_ends, make_roads, plan_reference_lines
 from .model import HDMap
 from .movements import junction_plan
 from .topology import add_successor_links, repair_topology
@@ -36,9 +36,11 @@ def build_hdmap(
     hd.roads = make_roads(G)  # RefineRoadGraph, AssignLaneConfig
     nodes = {n: G.nodes[n]["xy"] for n in G.nodes}
     hd.junctions = make_junctions(nodes, hd.roads, traffic_lights)
-    for road in hd.roads.values():  # GenerateLaneBoundaries, ConstructDirectionalLanes
-        trims = (hd.junctions[road.from_node].radius, hd.junctions[road.to_node].radius)
-        hd.lanes.update((lane.id, lane) for lane in build_road_lanes(road, *trims))
+    roads = list(hd.roads.values())
+    plan_reference_lines(roads, [(hd.junctions[road.from_node].radius,
+                                  hd.junctions[road.to_node].radius) for road in roads])
+    for road in roads:  # GenerateLaneBoundaries, ConstructDirectionalLanes
+        hd.lanes.update((lane.id, lane) for lane in build_road_lanes(road))
     ends = lane_ends(hd.lanes.values())
     nodes = list(hd.junctions)
     plans = map_shared(lambda node: junction_plan(hd, node, ends), nodes,

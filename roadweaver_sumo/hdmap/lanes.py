@@ -14,8 +14,9 @@ from functools import cache
 import networkx as nx
 import numpy as np
 
-from .geometry import arc_lengths, cut, dedupe, miter_normals, offset, unit_tangent
+from .geometry import arc_lengths, cut, dedupe, offset_along, unit_tangent
 from .model import Lane, LaneSection, Road, road_lane_id
+from .reference import fillet_plans, plan_points
 
 
 @dataclass(frozen=True)
@@ -32,6 +33,13 @@ class LaneConfig:
         """Distance from the reference line to the road's outer edge, metres."""
         return self.lanes * self.width
 
+    @property
+    def min_radius(self) -> float:
+        """The tightest arc of the reference line, metres: the outer lane edge on the inside of
+        a bend keeps ``BEND_MARGIN`` of radius (no lane folds over), and no arc is tighter
+        than ``MIN_TURN_RADIUS``."""
+        return max(MIN_TURN_RADIUS, self.half_width + BEND_MARGIN)
+
 
 LANE_CONFIGS: dict[str, LaneConfig] = {
     "arterial": LaneConfig(lanes=2, width=3.5, speed=13.89, priority=3),
@@ -39,9 +47,19 @@ LANE_CONFIGS: dict[str, LaneConfig] = {
     "local": LaneConfig(lanes=1, width=3.0, speed=8.33, priority=1),
 }
 
+MIN_TURN_RADIUS = 5.0  # m: cars turn on 5 m or more (pyxodr fails on arcs under ~1.5 m)
+BEND_MARGIN = 1.0  # m: radius left to a lane edge on the inside of the tightest bend
+
 # Junction trims never take more than this share of a road from each end, so that short roads
 # between wide junctions keep a lane section of at least 20 % of their length.
 MAX_TRIM_SHARE = 0.4
+
+# m: a lane section starts and ends straight for this far. Where a junction trim cuts a road
+# just before one of its bends, the stub of a few decimetres before the bend would become, in
+# the OpenDRIVE plan view, a bend too tight for any reader (netconvert warns of "sharp turns"
+# of 1-7 m radius); the road graph's bends turn at most ~30 degrees a vertex, whose 5 m fillet
+# and 1 m end line (``export.opendrive_geometry``) need 2.4 m.
+END_STRAIGHT = 3.0
 
 
 def make_roads(G: nx.Graph) -> dict[int, Road]:
@@ -69,19 +87,37 @@ def make_roads(G: nx.Graph) -> dict[int, Road]:
     return roads
 
 
-def build_road_lanes(road: Road, trim_start: float, trim_end: float) -> list[Lane]:
-    """Cut the reference line back by the junction trims, offset it into lane boundaries and
-    build the directional lanes of both driving directions (fills ``road.sections``)."""
-    length = float(arc_lengths(road.centreline)[-1])
-    s0 = min(trim_start, MAX_TRIM_SHARE * length)
-    s1 = length - min(trim_end, MAX_TRIM_SHARE * length)
-    reference = cut(road.centreline, s0, s1)
+def plan_reference_lines(roads: list[Road], trims: list[tuple[float, float]]) -> None:
+    """Give each road its lane section between its junction trims (``trims``: at its start and
+    end node) and its reference line there as lines and arcs (``road.plan``, paper Algorithm 1:
+    RefineRoadGraph), all roads in one batch. The centreline is cut back by the trims, with
+    no vertex within ``END_STRAIGHT`` of a cut end, and its corners filleted with arcs of at
+    least the class's ``min_radius``."""
+    lines = []
+    for road, (trim_start, trim_end) in zip(roads, trims, strict=True):
+        length = float(arc_lengths(road.centreline)[-1])
+        s0 = min(trim_start, MAX_TRIM_SHARE * length)
+        s1 = length - min(trim_end, MAX_TRIM_SHARE * length)
+        n = LANE_CONFIGS[road.road_class].lanes
+        ids = {d: [road_lane_id(road.id, d, k) for k in range(n)] for d in "fb"}
+        road.sections = [LaneSection(s0, s1, ids["f"], ids["b"])]
+        lines.append(cut(road.centreline, s0, s1, gap=END_STRAIGHT))
+    radii = [LANE_CONFIGS[road.road_class].min_radius for road in roads]
+    for road, line, plan in zip(roads, lines, fillet_plans(lines, radii), strict=True):
+        road.plan = plan
+        road.reference = plan_points(plan, line[0], line[-1])
+
+
+def build_road_lanes(road: Road) -> list[Lane]:
+    """Offset a road's reference line (:func:`plan_reference_lines`) into lane boundaries and
+    build the directional lanes of both driving directions."""
     n = LANE_CONFIGS[road.road_class].lanes
-    both = offset(reference, _lane_offsets(road.road_class), miter_normals(reference))
+    points, heading = road.reference
+    tangents = np.column_stack([np.cos(heading), np.sin(heading)])
+    both = offset_along(points, tangents, _lane_offsets(road.road_class)[:, None])
     lines = {"f": both[: 2 * n + 1], "b": both[2 * n + 1 :, ::-1]}
-    lanes = {d: _directional_lanes(road, d, lines[d][: n + 1], lines[d][n + 1 :]) for d in lines}
-    road.sections = [LaneSection(s0, s1, [x.id for x in lanes["f"]], [x.id for x in lanes["b"]])]
-    return lanes["f"] + lanes["b"]
+    return [lane for d in "fb" for lane in _directional_lanes(road, d, lines[d][: n + 1],
+                                                               lines[d][n + 1 :])]
 
 
 @cache

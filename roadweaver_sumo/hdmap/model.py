@@ -95,6 +95,10 @@ class Road:
     speed: float
     lane_width: float
     sections: list[LaneSection]
+    #: lines and arcs of the reference line within the lane section (``hdmap.reference``)
+    plan: list = field(default_factory=list)
+    #: ``plan`` sampled: the points the lanes are offset from and their headings (radians)
+    reference: tuple[np.ndarray, np.ndarray] | None = None
 
     def lanes(self, direction: str) -> list[str]:
         """Lane ids of one driving direction, rightmost first (single lane section)."""
