@@ -955,19 +955,20 @@ def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: f
     node, so none come close later. Each later round looks for short roads and sharp angles
     only at the nodes whose roads the round before changed (each pass returns them): every
     other road and node was looked at since it last changed. (The later rounds change a few
-    roads each, and measuring the whole map again was most of their time.) ``changed``:
-    ``G`` was cleaned, and since then only these nodes' roads changed."""
+    roads each, and measuring the whole map again was most of their time.) Roads too close to
+    another (:func:`remove_close_roads`) are looked for once the other passes change nothing:
+    that check measures every pair of neighbouring roads, and most rounds change a few.
+    ``changed``: ``G`` was cleaned, and since then only these nodes' roads changed."""
     bearings: dict = {}
     order = node_order(G)  # nodes are only removed here
     settled = False
-    for round_ in range(10):
+    for round_ in range(20):
         before = (G.number_of_nodes(), G.number_of_edges())
         touched = merge_close_nodes(G, min_edge * 0.8) if round_ == 0 and changed is None \
             else set()
         touched |= contract_short_edges(G, min_edge, nodes=changed, order=order)
         cut = remove_sharp_angles(G, min_angle, bearings,
                                   nodes=None if changed is None else changed | touched)
-        cut |= remove_close_roads(G)
         touched |= cut
         touched |= prune_stubs(G, stub, margin,
                                nodes=None if changed is None else changed | touched)
@@ -977,8 +978,12 @@ def clean(G: nx.Graph, min_edge: float, min_angle: float, stub: float, margin: f
             keep_largest_component(G)
         touched |= dissolve_degree_two(G, min_angle, bearings)
         if (G.number_of_nodes(), G.number_of_edges()) == before:
-            settled = True
-            break
+            touched = remove_close_roads(G)
+            if not touched:
+                settled = True
+                break
+            if keep_largest:
+                keep_largest_component(G)
         changed = touched
     if min_block_area > 0:
         opened = open_tiny_blocks(G, min_block_area)
