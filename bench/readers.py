@@ -4,6 +4,7 @@ netconvert re-import of the ``.xodr``. None of them shares code with the generat
 sees the files as a user's tool would.
 
     python bench/readers.py DIR [DIR ...] [--qc-python PY] [--asam-every N] [--esmini-roads N]
+                           [--cr-python PY] [--cr-every N]
 
 A DIR is a scenario folder (it holds ``map.xodr``) or a folder of them. Prints one JSON line
 per folder as it goes (each reader's figures and ``problem``: null when it accepted the map),
@@ -11,6 +12,9 @@ then the totals and every problem. Needs no network. The ASAM checker runs in it
 (``--qc-python``, default ``$ROADWEAVER_QC_PYTHON`` or ``/tmp/qcvenv/bin/python``; skipped
 with a note when absent); it is slow, so ``--asam-every N`` runs it on every N-th map. esmini
 is slower still on big maps: ``--esmini-roads`` (default 5000) bounds the maps it reads.
+CommonRoad's converter (commonroad-scenario-designer) pins packages that clash with ours: it
+runs in a venv of its own (``--cr-python``, default ``$ROADWEAVER_CR_PYTHON`` or
+``/tmp/rd/crvenv/bin/python``; skipped with a note when absent).
 """
 
 from __future__ import annotations
@@ -262,6 +266,31 @@ def lanelet_polygons(osm: Path) -> dict:
             "problem": f"{len(bad)} invalid polygons: {bad[:5]}" if bad else None}
 
 
+#: run in the CommonRoad venv: map.xodr through commonroad-scenario-designer's converter, then
+#: each lanelet's polygon checked by shapely; prints one JSON line
+COMMONROAD_SCRIPT = """
+import json, sys
+from crdesigner.map_conversion.map_conversion_interface import opendrive_to_commonroad
+lanelets = opendrive_to_commonroad(sys.argv[1]).lanelet_network.lanelets
+bad = [l for l in lanelets if not l.polygon.shapely_object.is_valid]
+print(json.dumps({"lanelets": len(lanelets), "invalid": len(bad),
+                  "invalid_lengths": sorted(round(float(l.distance[-1]), 1) for l in bad)}))
+"""
+
+
+def commonroad(xodr: Path, cr_python: str, work: Path) -> dict:
+    """commonroad-scenario-designer's OpenDRIVE conversion (in its own venv, ``cr_python``:
+    its pins clash with ours): lanelets whose polygon self-intersects, and their lengths
+    (7-10 m: U-turns at dead ends; longer: a road's lanes)."""
+    rc, out = sh([cr_python, "-c", COMMONROAD_SCRIPT, str(xodr.resolve())], work)
+    lines = [ln for ln in out.splitlines() if ln.startswith("{")]
+    if rc or not lines:
+        return {"failed": True, "problem": f"exit {rc}: {out.strip().splitlines()[-1:]}"}
+    found = json.loads(lines[-1])
+    return {**found, "problem": f"{found['invalid']} self-intersecting lanelets, lengths "
+                                f"{found['invalid_lengths'][:8]}" if found["invalid"] else None}
+
+
 def netconvert_reimport(xodr: Path, work: Path) -> dict:
     """``netconvert --opendrive-files``: a sharp-turn warning means it read a road end as a
     turn tighter than ~9 m radius. Warnings are counted by kind (ids and numbers blanked;
@@ -277,7 +306,8 @@ def netconvert_reimport(xodr: Path, work: Path) -> dict:
             if rc or sharp else None}
 
 
-def check_folder(folder: Path, qc_python: str | None, esmini_roads: int) -> dict:
+def check_folder(folder: Path, qc_python: str | None, esmini_roads: int,
+                 cr_python: str | None = None) -> dict:
     """Every reader on one scenario folder, each in a fresh temp dir; a reader that raises
     is recorded as failed, with the first line of its error as the problem. esmini is left
     out of maps with more than ``esmini_roads`` roads: it looks roads up by id with a linear
@@ -291,10 +321,11 @@ def check_folder(folder: Path, qc_python: str | None, esmini_roads: int) -> dict
                "odrplot": lambda w: esmini_odrplot(xodr, w),
                "esmini": lambda w: esmini_run(xodr, w),
                "lanelets": lambda w: lanelet_polygons(folder / "lanelet2_map.osm"),
-               "netconvert": lambda w: netconvert_reimport(xodr, w)}
+               "netconvert": lambda w: netconvert_reimport(xodr, w),
+               "commonroad": lambda w: commonroad(xodr, cr_python, w)}
     row: dict = {"map": folder.name}
     for name, reader in readers.items():
-        if name == "asam" and not qc_python:
+        if (name == "asam" and not qc_python) or (name == "commonroad" and not cr_python):
             continue
         if name in ("odrplot", "esmini") and roads > esmini_roads:
             row[name] = {"skipped": f"{roads} roads", "problem": None, "seconds": 0.0}
@@ -340,6 +371,7 @@ SUMMARY = {  # reader -> its figures over the maps it read
                          f"{min(r['min_path'] for r in ok)} m",
     "lanelets": lambda ok: summed(ok, "invalid", "lanelets"),
     "netconvert": lambda ok: f"{summed(ok, 'sharp_turns')}, warnings {kinds(ok, 'warnings')}",
+    "commonroad": lambda ok: summed(ok, "invalid", "lanelets"),
 }
 
 
@@ -365,18 +397,28 @@ def main() -> None:
     ap.add_argument("--qc-python", default=os.environ.get("ROADWEAVER_QC_PYTHON",
                                                           "/tmp/qcvenv/bin/python"))
     ap.add_argument("--asam-every", type=int, default=1, help="ASAM check on every N-th map")
+    ap.add_argument("--cr-python", default=os.environ.get("ROADWEAVER_CR_PYTHON",
+                                                          "/tmp/rd/crvenv/bin/python"),
+                    help="python of a venv with commonroad-scenario-designer")
+    ap.add_argument("--cr-every", type=int, default=1,
+                    help="CommonRoad conversion on every N-th map (a 1 km map takes ~30 s)")
     ap.add_argument("--esmini-roads", type=int, default=5000,
                     help="leave esmini out of maps with more roads (its load is quadratic)")
     args = ap.parse_args()
     qc = args.qc_python if Path(args.qc_python).exists() else None
     if not qc:
         print(f"note: no {args.qc_python}: XSD and ASAM checks skipped", file=sys.stderr)
+    cr = args.cr_python if Path(args.cr_python).exists() else None
+    if not cr:
+        print(f"note: no {args.cr_python}: CommonRoad conversion skipped", file=sys.stderr)
     folders = sorted({p.parent for d in args.dirs for p in [d / "map.xodr", *d.rglob("*/map.xodr")]
                       if p.exists()})
     rows = []
     for index, folder in enumerate(folders):
         asam_now = index % max(args.asam_every, 1) == 0
-        rows.append(check_folder(folder, qc if asam_now else None, args.esmini_roads))
+        cr_now = index % max(args.cr_every, 1) == 0
+        rows.append(check_folder(folder, qc if asam_now else None, args.esmini_roads,
+                                 cr if cr_now else None))
         print(json.dumps(rows[-1]), flush=True)
     print("\n".join(totals(rows)), flush=True)
 
