@@ -20,6 +20,7 @@ from pathlib import Path
 from .errors import RoadweaverError
 
 _staged: list[Path] = []  # folders being built by this process, the innermost last
+_workspaces: list[Path] = []  # where temporary files go (:func:`scratch_dir`), innermost last
 
 
 @contextmanager
@@ -41,11 +42,13 @@ def staged_folder(out_dir: Path, force: bool) -> Iterator[Path]:
     except OSError as exc:
         raise RoadweaverError(f"cannot write to {parent}: {exc.strerror or exc}") from None
     _staged.append(tmp)
+    _workspaces.append(tmp)
     try:
         yield tmp
         _move_into_place(tmp, out_dir, force)
     finally:
         _staged.remove(tmp)
+        _workspaces.remove(tmp)
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
 
@@ -65,11 +68,29 @@ def scratch_beside(folder: Path) -> Iterator[Path | None]:
         yield None
         return
     _staged.append(tmp)
+    _workspaces.append(tmp)
     try:
         yield tmp
     finally:
         _staged.remove(tmp)
+        _workspaces.remove(tmp)
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+@contextmanager
+def scratch_inside(folder: str | Path | None) -> Iterator[None]:
+    """While the block runs, temporary files go inside ``folder``: a worker process's share
+    of a run that made ``folder`` with :func:`scratch_beside` (which removes it). None: no
+    change."""
+    if folder is None:
+        yield
+        return
+    folder = Path(folder)
+    _workspaces.append(folder)
+    try:
+        yield
+    finally:
+        _workspaces.remove(folder)
 
 
 def remove_staged(patience_s: float = 2.0) -> None:
@@ -85,15 +106,15 @@ def remove_staged(patience_s: float = 2.0) -> None:
 
 
 def scratch_dir() -> Path | None:
-    """Where temporary files go: inside the folder this process is staging, so that a killed
-    run leaves them only there (removed by the next run); None (the system's temporary
-    folder) when nothing is staged."""
-    return _staged[-1].resolve() if _staged else None  # absolute: tools run in other folders
+    """Where temporary files go: inside the folder this process is staging (or was given by
+    :func:`scratch_inside`), so that a killed run leaves them only there (removed by the next
+    run); None (the system's temporary folder) when there is none."""
+    return _workspaces[-1].resolve() if _workspaces else None  # absolute: tools run elsewhere
 
 
 def remove_stale(out_dir: Path) -> list[Path]:
-    """Remove what killed runs on ``out_dir`` left beside it: ``.NAME.partial-PID-*`` folders,
-    and ``.NAME.old-PID`` (the previous output, moved aside while the new one moved in; put
+    """Remove what killed runs on ``out_dir`` left beside it: ``.NAME.partial-PID-*`` folders
+    (or files: a checkpoint being written), and ``.NAME.old-PID`` (the previous output, moved aside while the new one moved in; put
     back if ``out_dir`` is missing). Only where process PID is gone. Returns what was
     removed or put back."""
     out_dir = Path(out_dir)
@@ -106,12 +127,14 @@ def remove_stale(out_dir: Path) -> list[Path]:
         return handled
     for path in siblings:
         match = pattern.fullmatch(path.name)
-        if not match or not path.is_dir() or _alive(int(match.group(2))):
+        if not match or _alive(int(match.group(2))):
             continue
         if match.group(1) == "old" and not out_dir.exists():
             path.rename(out_dir)
-        else:
+        elif path.is_dir():
             shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
         handled.append(path)
     return handled
 

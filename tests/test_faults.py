@@ -14,6 +14,7 @@ import time
 import uuid
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from roadweaver_sumo import children, cli
@@ -94,6 +95,41 @@ def test_a_killed_run_leaves_no_process_no_stray_file_and_the_next_run_works(
                            check=False, timeout=120)
     assert again.returncode == 0, again.stderr
     assert [p.name for p in parent.iterdir()] == ["scn"]
+    assert list(system_tmp.iterdir()) == [] and _gone(token, 1.0) == {}
+
+
+def test_a_killed_check_suite_leaves_its_temporary_files_only_beside_the_suite(tmp_path):
+    """check-suite rebuilds each scenario from its spec: killed (SIGKILL) while the rebuild
+    runs netconvert, it leaves no process, nothing in the system's temporary folder and only
+    its hidden staging folder beside the suite, which the next check removes."""
+    parent, system_tmp = tmp_path / "parent", tmp_path / "tmp"
+    parent.mkdir()
+    system_tmp.mkdir()
+    suite = parent / "suite"
+    made = subprocess.run([CLI, "make-suite", "--densities", "20", "--styles", "grid", "--seeds",
+                           "0", "--size", "500", "--vehicles", "15", "--duration", "60",
+                           "--skeleton", "procedural", "--quiet", "--out", str(suite)],
+                          capture_output=True, text=True, check=False, timeout=300)
+    assert made.returncode == 0, made.stderr
+    token = uuid.uuid4().hex
+    env = {**os.environ, MARKER: token, "TMPDIR": str(system_tmp)}
+    run = subprocess.Popen([CLI, "check-suite", str(suite), "--workers", "1", "--quiet"], env=env,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    seen = False
+    while run.poll() is None and not seen:
+        seen = any("/netconvert" in cmd for cmd in _processes_with(token).values())
+        time.sleep(0.005)
+    assert seen, "check-suite ended before its rebuild ran netconvert"
+    run.kill()
+    run.wait(timeout=60)
+    assert _gone(token, 2.0) == {}
+    assert list(system_tmp.iterdir()) == []
+    left = sorted(p.name for p in parent.iterdir())
+    assert len(left) == 2 and left[0].startswith(f".suite.partial-{run.pid}-"), left
+    again = subprocess.run([CLI, "check-suite", str(suite), "--no-regenerate", "--quiet"],
+                           env=env, capture_output=True, text=True, check=False, timeout=300)
+    assert again.returncode == 0, again.stderr
+    assert [p.name for p in parent.iterdir()] == ["suite"]
     assert list(system_tmp.iterdir()) == [] and _gone(token, 1.0) == {}
 
 
@@ -184,6 +220,18 @@ def test_stale_staging_of_a_dead_run_is_removed_and_a_live_one_kept(tmp_path):
         assert tmp.name.startswith(f".scn.partial-{os.getpid()}-")
         (tmp / "a").write_text("a")
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([out.name, live.name, other.name])
+
+
+def test_a_checkpoint_is_written_under_a_hidden_name_and_a_dead_runs_one_removed(tmp_path):
+    """A training run killed while it saves leaves ``.NAME.partial-PID`` beside the
+    checkpoint, never a half file under the real name; the next save removes it."""
+    from roadweaver_sumo.generative.checkpoint import save_checkpoint
+
+    path = tmp_path / "vq.npz"
+    left = tmp_path / f".vq.npz.partial-{_dead_pid()}"
+    left.write_bytes(b"half a checkpoint")
+    save_checkpoint(path, {"w": np.ones(3)}, {"kind": "vqvae"})
+    assert [p.name for p in tmp_path.iterdir()] == ["vq.npz"]
 
 
 def test_an_output_moved_aside_by_a_killed_run_is_put_back(tmp_path):

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import RoadweaverError
+from ..staging import remove_stale
 
 WEIGHTS_DIR = Path(__file__).parent / "weights"
 SHIPPED_VQVAE = WEIGHTS_DIR / "vqvae.npz"
@@ -25,17 +26,19 @@ STATE_PREFIX = "state/"
 
 
 def save_checkpoint(path: Path, state: dict, meta: dict) -> None:
-    """Write ``state`` (torch tensors or arrays) atomically: a temp file, then a rename, so a
-    killed run leaves no half checkpoint."""
+    """Write ``state`` (torch tensors or arrays) atomically: a hidden ``.NAME.partial-PID``
+    file, then a rename, so a killed run leaves no half checkpoint under the real name, and
+    the next save to the same path removes what a killed run left."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale(path)
     arrays = {}
     for name, value in state.items():
         array = value.detach().cpu().numpy() if hasattr(value, "detach") else np.asarray(value)
         arrays[STATE_PREFIX + name] = (array.astype(np.float16)
                                        if np.issubdtype(array.dtype, np.floating) else array)
     arrays["meta"] = np.array(json.dumps(meta, sort_keys=True))
-    tmp = path.with_name(path.name + ".tmp")
+    tmp = path.with_name(f".{path.name}.partial-{os.getpid()}")
     with open(tmp, "wb") as out:  # a file object: np.savez would append ".npz" to a name
         np.savez(out, **arrays)
     os.replace(tmp, path)

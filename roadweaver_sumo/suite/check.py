@@ -20,6 +20,7 @@ import tempfile
 from pathlib import Path
 
 from ..errors import RoadweaverError
+from ..staging import scratch_beside, scratch_dir, scratch_inside
 from .compare import compare_files, same_figure
 from .engines import check_workers, cores_busy, run_jobs
 from .manifest import environment, file_hashes, key_figures, read_manifest, spec_from_entry
@@ -57,9 +58,10 @@ def check_suite(
     what = "re-validating and regenerating" if regenerate else "re-validating"
     progress.say(f"{what} {len(entries)} scenarios of {folder}")
     busy = cores_busy("local", workers)
-    jobs = [(str(folder / name), entry, regenerate, busy)
-            for name, entry in sorted(entries.items())]
-    run_jobs(check_job, jobs, on_result, workers=workers)
+    with scratch_beside(folder) as scratch:  # the workers' temporary files, rebuilds included
+        jobs = [(str(folder / name), entry, regenerate, busy, scratch and str(scratch))
+                for name, entry in sorted(entries.items())]
+        run_jobs(check_job, jobs, on_result, workers=workers)
     return dict(sorted(problems.items()))
 
 
@@ -75,11 +77,12 @@ def environment_note(folder: Path) -> str | None:
     return f"made with other versions: {', '.join(changed)}" if changed else None
 
 
-def check_job(job: tuple[str, dict, bool, bool]) -> tuple[str, list[str], list[str]]:
+def check_job(job: tuple[str, dict, bool, bool, str | None]
+              ) -> tuple[str, list[str], list[str]]:
     """Worker: the problems of one scenario folder against its manifest entry, and the notes
     on files rebuilt with floating-point noise. ``job`` is (folder, manifest entry,
-    regenerate, cores busy)."""
-    path, entry, regenerate, busy = job
+    regenerate, cores busy, the folder for temporary files or None)."""
+    path, entry, regenerate, busy, scratch = job
     folder = Path(path)
     name = folder.name
     if "error" in entry:
@@ -89,9 +92,10 @@ def check_job(job: tuple[str, dict, bool, bool]) -> tuple[str, list[str], list[s
     notes: list[str] = []
     try:
         problems = _compare_files("file", file_hashes(folder), entry["files"])
-        problems += _revalidate(folder, entry["figures"], busy)
-        if regenerate:
-            problems += _regenerate(entry, busy, folder, notes)
+        with scratch_inside(scratch):
+            problems += _revalidate(folder, entry["figures"], busy)
+            if regenerate:
+                problems += _regenerate(entry, busy, folder, notes)
     except OSError as exc:
         problems = [f"cannot read the scenario: {exc.strerror or exc}"]
     except Exception as exc:  # noqa: BLE001 - a damaged folder is a finding, not a crash
@@ -147,7 +151,7 @@ def _regenerate(entry: dict, busy: bool, folder: Path, notes: list[str]) -> list
     from ..pipeline import make_scenario
 
     spec = spec_from_entry(entry, "manifest")
-    with tempfile.TemporaryDirectory(prefix="roadweaver-check-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="regenerated-", dir=scratch_dir()) as tmp:
         out = Path(tmp) / spec.name
         try:
             make_scenario(spec, out, validate=True, cores_busy=busy)
