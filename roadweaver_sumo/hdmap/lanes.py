@@ -58,7 +58,7 @@ MAX_TRIM_SHARE = 0.4
 # just before one of its bends, the stub of a few decimetres before the bend would become, in
 # the OpenDRIVE plan view, a bend too tight for any reader (netconvert warns of "sharp turns"
 # of 1-7 m radius); the road graph's bends turn at most ~30 degrees a vertex, whose 5 m fillet
-# and 1 m end line (``export.opendrive_geometry``) need 2.4 m.
+# and 1 m end line (``reference.fillet_plans``) need 2.4 m.
 END_STRAIGHT = 3.0
 
 
