@@ -43,12 +43,8 @@ RAND_NODES_PER_ITERATION = 0.89
 
 
 def child(size: float, density: float, seed: int, skeleton: str, folder: Path) -> None:
-    """One generation in this process, with the allocator set as the command line sets it:
-    print stage times, peak RSS and road nodes as JSON."""
-    from roadweaver_sumo.allocator import keep_freed_memory
+    """One generation in this process: print stage times, peak RSS and road nodes as JSON."""
     from roadweaver_sumo.pipeline import build_scenario_files
-
-    keep_freed_memory()
     from roadweaver_sumo.spec import ScenarioSpec
 
     spec = ScenarioSpec(density=density, vehicles=500, width=size, height=size, seed=seed,

@@ -25,7 +25,6 @@ import warnings
 from pathlib import Path
 
 from . import __version__, children
-from .allocator import keep_freed_memory
 from .cli_parser import PROG, build_parser
 from .errors import RoadweaverError
 from .spec import ScenarioSpec, parse_size
@@ -42,7 +41,6 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = _one_line_warning
-    keep_freed_memory()
     try:
         with children.handle_termination(_stopped):
             return _run(build_parser().parse_args(argv))

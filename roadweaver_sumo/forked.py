@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import TypeVar
 
 from . import children
@@ -81,17 +81,3 @@ def _run_in_child(job: Callable, send, name: str, parent_pid: int) -> None:
                  else f"{type(value).__name__}: {value}")
         send.send((False, RuntimeError(f"{name}: {error}")))
     send.close()
-
-
-def map_shared(fn: Callable[[T], U], items: Sequence[T], *, name: str,
-               min_items: int = 2) -> list[U]:
-    """``[fn(item) for item in items]``, every other item computed by a forked child (items
-    next to each other often cost alike, so each process gets about half the time); in this
-    process alone for fewer than ``min_items`` items, where forking costs more than it saves."""
-    if len(items) < max(min_items, 2):
-        return [fn(item) for item in items]
-    mine, theirs = beside(lambda: [fn(item) for item in items[1::2]],
-                          lambda: [fn(item) for item in items[0::2]], name=name)
-    out: list = [None] * len(items)
-    out[0::2], out[1::2] = mine, theirs
-    return out

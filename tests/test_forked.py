@@ -14,27 +14,15 @@ from roadweaver_sumo import forked
 pytestmark = pytest.mark.skipif(not forked.can_fork(), reason="only where fork exists")
 
 
-def test_map_shared_keeps_the_order_and_uses_a_child():
-    items = list(range(11))
-    pids = forked.map_shared(lambda k: (k * k, os.getpid()), items, name="squaring")
-    assert [square for square, _ in pids] == [k * k for k in items]
-    assert {pid for _, pid in pids[0::2]} == {os.getpid()}
-    assert {pid for _, pid in pids[1::2]} - {os.getpid()}  # every other item: the child
+def test_both_parts_are_computed_and_an_error_in_the_child_is_raised_here():
+    here, there = forked.beside(lambda: os.getpid(), lambda: os.getpid(), name="ids")
+    assert here == os.getpid() != there
 
+    def fail_there():
+        raise ValueError("the child's part failed")
 
-def test_few_items_stay_in_this_process():
-    pids = forked.map_shared(lambda k: os.getpid(), [1, 2, 3], name="ids", min_items=4)
-    assert set(pids) == {os.getpid()}
-
-
-def test_an_error_in_the_child_is_raised_here():
-    def fail_on_odd(k):
-        if k % 2:
-            raise ValueError(f"item {k} is odd")
-        return k
-
-    with pytest.raises(ValueError, match="item 1 is odd"):
-        forked.map_shared(fail_on_odd, [0, 1, 2, 3], name="checking")
+    with pytest.raises(ValueError, match="the child's part failed"):
+        forked.beside(fail_there, lambda: None, name="checking")
 
 
 def test_the_error_here_wins_and_the_child_is_collected_first():

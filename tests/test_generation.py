@@ -762,22 +762,6 @@ def test_fill_node_ids_are_the_next_ids():
     assert index.new_node_id() == max(G.nodes) + 1
 
 
-def test_dead_ends_linked_by_a_forked_child_give_the_same_links(monkeypatch):
-    """Large maps search every other dead end's link in a forked child; lowering the
-    threshold makes a small map use it too: the same links in the same order."""
-    from roadweaver_sumo.expand import reconnect
-
-    spec = ScenarioSpec(vehicles=1, density=30, width=1500, height=1500, seed=1,
-                        skeleton="learned")
-    G, cost, res = _before_reconnection(spec)
-    alone = reconnect.reconnect_dangles(G, cost, res, radius=100.0, margin=30.0)
-    monkeypatch.setattr(reconnect, "FORK_DEAD_ENDS", 2)
-    shared = reconnect.reconnect_dangles(G, cost, res, radius=100.0, margin=30.0)
-    assert len(alone) >= 10
-    assert len(shared) == len(alone)
-    assert all(np.array_equal(a, b) for a, b in zip(alone, shared, strict=True))
-
-
 def _before_reconnection(spec):
     """The planar, cleaned graph the expansion reconnects, with the skeleton's cost map."""
     from roadweaver_sumo.expand import BORDER_MARGIN, build_planar_graph, clean

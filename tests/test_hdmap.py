@@ -384,23 +384,6 @@ def test_compiled_lane_geometry_matches_numpy_bit_for_bit():
             assert np.array_equal(miter_normals(coords), numpy_way)
 
 
-def test_junctions_planned_by_a_forked_child_give_the_same_map(monkeypatch):
-    """Every other junction's movements come from a forked child on large maps; lowering the
-    threshold makes this small map use it too: the same lanes, links and connectors."""
-    from roadweaver_sumo.hdmap import build
-
-    alone = build_hdmap(grid_with_arterial_cross())
-    monkeypatch.setattr(build, "FORK_JUNCTIONS", 2)
-    shared = build_hdmap(grid_with_arterial_cross())
-    assert list(shared.lanes) == list(alone.lanes)
-    for lane_id, lane in alone.lanes.items():
-        other = shared.lanes[lane_id]
-        assert np.array_equal(lane.centre, other.centre)
-        assert (lane.successors, lane.predecessors) == (other.successors, other.predecessors)
-    assert {n: j.connectors for n, j in shared.junctions.items()} == {
-        n: j.connectors for n, j in alone.junctions.items()}
-
-
 def test_no_left_turn_sharper_than_135_degrees_where_there_is_another_way():
     """A local road leaves an arterial 40° from its west arm: from the west it would be a 140°
     left turn beside the oncoming lanes (SUMO put such a left-turner's waiting point 0.7 m from

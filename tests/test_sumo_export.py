@@ -5,7 +5,6 @@ from __future__ import annotations
 import hashlib
 import re
 import shutil
-import time
 
 import networkx as nx
 import numpy as np
@@ -17,7 +16,6 @@ from roadweaver_sumo.errors import RoadweaverError
 from roadweaver_sumo.export import map_files
 from roadweaver_sumo.export.netconvert import available_templates, run_netconvert
 from roadweaver_sumo.export.sumo_plain import _num, _points, lane_connections, write_plain
-from roadweaver_sumo.forked import can_fork
 from roadweaver_sumo.hdmap import build_hdmap
 from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
@@ -199,43 +197,11 @@ def _digests(folder):
             for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
-def test_parallel_and_sequential_writes_are_identical(tmp_path):
-    hd = build_hdmap(town(), GEO_ORIGIN)
-    map_files.write_map_files(hd, tmp_path / "parallel", parallel=True)
-    map_files.write_map_files(hd, tmp_path / "sequential", parallel=False)
-    written = _digests(tmp_path / "parallel")
-    assert sorted(written) == ["lanelet2_map.osm", "map.xodr", "plain/map.con.xml",
-                               "plain/map.edg.xml", "plain/map.nod.xml"]
-    assert written == _digests(tmp_path / "sequential")
-
-
-def test_either_process_may_write_first_into_a_new_folder(tmp_path, monkeypatch):
-    """The folder exists before the child starts: lanelet2, written here, does not wait for
-    the child's plain files to create it (a race that a slow child lost)."""
-    write_plain = map_files.write_plain
-
-    def late_plain(hd, folder, **files):
-        time.sleep(0.3)
-        return write_plain(hd, folder, **files)
-
-    monkeypatch.setattr(map_files, "write_plain", late_plain)
+def test_the_map_files_are_written_into_a_new_folder(tmp_path):
     map_files.write_map_files(build_hdmap(town(), GEO_ORIGIN), tmp_path / "new" / "folder")
-    assert (tmp_path / "new" / "folder" / "lanelet2_map.osm").is_file()
-
-
-@pytest.mark.skipif(not can_fork(), reason="writers only fork where fork exists")
-@pytest.mark.parametrize("writer, finished", [("write_lanelet2", "plain/map.con.xml"),
-                                               ("write_opendrive", "lanelet2_map.osm")])
-def test_an_error_in_either_process_is_raised_here(tmp_path, monkeypatch, writer, finished):
-    """lanelet2 is written here, OpenDRIVE by the forked child: either failure is raised, after
-    the other process has finished its files."""
-    def broken(hd, path):
-        raise OSError(28, "No space left on device", str(path))
-
-    monkeypatch.setattr(map_files, writer, broken)
-    with pytest.raises(OSError, match="No space left on device"):
-        map_files.write_map_files(build_hdmap(town(), GEO_ORIGIN), tmp_path)
-    assert (tmp_path / finished).is_file()
+    assert sorted(_digests(tmp_path / "new" / "folder")) == [
+        "lanelet2_map.osm", "map.xodr", "plain/map.con.xml", "plain/map.edg.xml",
+        "plain/map.nod.xml"]
 
 
 def test_shapes_write_every_number_as_single_numbers_are_written():

@@ -19,13 +19,9 @@ import shapely
 from shapely.ops import nearest_points
 
 from ..compiled import B1_2D, F8_2D, I8, I8_2D, compiled
-from ..forked import map_shared
 from ..raster import polyline_cells_each, rasterise_polylines, rasterise_window
 from ..roadgraph import sorted_edge_list
 from .planar import components_main_first, road_lines
-
-#: Fewer dead ends are searched in this process alone: a fork costs more than they take.
-FORK_DEAD_ENDS = 200
 
 
 def dangling_ends(G: nx.Graph, margin: float) -> list[int]:
@@ -67,8 +63,7 @@ def reconnect_dangles(
             path = _snap_end(path, lines, tree, skip)
         return path
 
-    paths = map_shared(link, dangling_ends(G, margin), name="linking dead ends",
-                       min_items=FORK_DEAD_ENDS)
+    paths = [link(n) for n in dangling_ends(G, margin)]
     return [path for path in paths if path is not None]
 
 

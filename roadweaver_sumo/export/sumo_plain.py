@@ -138,11 +138,10 @@ PLAIN_FILES = {"map.nod.xml": plain_nodes, "map.edg.xml": plain_edges,
                "map.con.xml": plain_connections}
 
 
-def write_plain(hdmap: HDMap, plain_dir: Path, files=tuple(PLAIN_FILES)) -> None:
-    """Write ``files`` (by default ``map.nod.xml``, ``map.edg.xml`` and ``map.con.xml``) into
-    ``plain_dir`` (created if missing). Output is deterministic: sorted ids, two-decimal
-    coordinates."""
+def write_plain(hdmap: HDMap, plain_dir: Path) -> None:
+    """Write ``map.nod.xml``, ``map.edg.xml`` and ``map.con.xml`` into ``plain_dir`` (created
+    if missing). Output is deterministic: sorted ids, two-decimal coordinates."""
     plain_dir = Path(plain_dir)
     plain_dir.mkdir(parents=True, exist_ok=True)
-    for name in files:
-        write(PLAIN_FILES[name](hdmap), plain_dir / name)  # lxml's pretty_print bytes, faster
+    for name, tree in PLAIN_FILES.items():
+        write(tree(hdmap), plain_dir / name)  # lxml's pretty_print bytes, faster

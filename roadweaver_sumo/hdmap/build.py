@@ -4,16 +4,11 @@ from __future__ import annotations
 
 import networkx as nx
 
-from ..forked import map_shared
 from .junctions import add_connectors, make_junctions
 from .lanes import build_road_lanes, lane_ends, make_roads, plan_reference_lines
 from .model import HDMap
 from .movements import junction_plan
 from .topology import add_successor_links, repair_topology
-
-#: Fewer junctions are planned in this process alone: a fork costs more than they take (a
-#: 10 km map's 3,000 junctions take 0.2 s of CPU, and a forked child plans every other one).
-FORK_JUNCTIONS = 500
 
 
 def build_hdmap(
@@ -43,8 +38,7 @@ def build_hdmap(
         hd.lanes.update((lane.id, lane) for lane in build_road_lanes(road))
     ends = lane_ends(hd.lanes.values())
     nodes = list(hd.junctions)
-    plans = map_shared(lambda node: junction_plan(hd, node, ends), nodes,
-                       name="planning junction movements", min_items=FORK_JUNCTIONS)
+    plans = [junction_plan(hd, node, ends) for node in nodes]
     plan = [(node, *entry) for node, entries in zip(nodes, plans, strict=True)
             for entry in entries]
     add_connectors(hd, plan, ends)  # ConstructJunctionConnections, MergeLaneInstances

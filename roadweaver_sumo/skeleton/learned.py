@@ -20,7 +20,6 @@ from scipy.ndimage import gaussian_filter, map_coordinates
 
 from ..data.condition import style_preset
 from ..data.field import field_to_graph
-from ..forked import beside
 from ..portable import FLOAT32_DECIMALS, portable
 from ..roadgraph import edge_coords, edge_length
 from ..spec import STAGE_SKELETON, ScenarioSpec
@@ -36,9 +35,6 @@ BASIS_SIGMA_M = 60.0
 ARTERIAL_SHARE, COLLECTOR_SHARE = 0.25, 0.25
 STROKE_MAX_DEFLECTION_DEG = 35.0
 STROKE_REACH_M = 40.0
-#: Maps from this area (m²) on compute their fields in a forked child; on smaller ones the
-#: fork costs more than it saves (5 km: even; 10 km: 0.3 s saved).
-FORK_FIELDS_M2 = 25e6
 
 
 @lru_cache(maxsize=2)
@@ -72,14 +68,7 @@ def learned_skeleton(spec: ScenarioSpec, generator=None) -> Skeleton:
     def fields() -> tuple[TensorField, np.ndarray]:
         return _basis_field(F, res, spec), _resample(F[..., 0], res, spec.width, spec.height)
 
-    if spec.width * spec.height < FORK_FIELDS_M2:
-        (lines, classes), (basis, road_prob) = centrelines(), fields()
-    else:
-        # A forked child smooths and resamples the fields while this process extracts the
-        # centrelines. (In a thread the two took turns at the GIL: at 10 km the fields took
-        # 0.8 s instead of 0.3 s and the centrelines 0.5 s instead of 0.3 s.)
-        (lines, classes), (basis, road_prob) = beside(fields, centrelines,
-                                                      name="smoothing the decoded field")
+    (lines, classes), (basis, road_prob) = centrelines(), fields()
     return Skeleton(
         polylines=lines,
         frame=perimeter(spec.width, spec.height),
