@@ -176,15 +176,12 @@ class MaskGITSampler:
                  parts(_linear(c, w["final_mod.weight"], w["final_mod.bias"]), 2))
                 for c in rows]
 
-    def trunk(self, tokens: np.ndarray, masked: np.ndarray, mods, rows=None,
-              map_halves=None) -> np.ndarray:
+    def trunk(self, tokens: np.ndarray, masked: np.ndarray, mods, rows=None) -> np.ndarray:
         """Features (n, dim) of the tokens (n, G) with the ``masked`` (n,) positions hidden,
         under one condition's AdaLN terms ``mods``; with ``rows`` (indices), only those
         positions' features. Every block attends over all positions, but after the last
         block's keys and values only the rows asked for matter, so that block computes only
-        them (the other rows are most of a window that is mostly context). ``map_halves`` (a
-        thread pool's ``map``): each block in halves of its rows side by side
-        (:meth:`_block_in_halves`)."""
+        them (the other rows are most of a window that is mostly context)."""
         block_mods, (scale, shift) = mods
         x = sum(emb[tokens[:, g]] for g, emb in enumerate(self.token_embed))
         x = np.where(masked[:, None], self.w["mask_embed"], x)
@@ -192,10 +189,7 @@ class MaskGITSampler:
         subset = rows is not None and len(rows) >= MIN_ROWS
         for i, (block, terms) in enumerate(zip(self.blocks, block_mods, strict=True)):
             queries = rows if subset and i == len(self.blocks) - 1 else None
-            if map_halves is None:
-                x = self._block(x, block, terms, queries)
-            else:
-                x = self._block_in_halves(x, block, terms, queries, map_halves)
+            x = self._block(x, block, terms, queries)
         h = np.empty_like(x)
         _modulated_norm(x, scale, shift, h)
         return h if subset or rows is None else h[rows]
@@ -213,46 +207,6 @@ class MaskGITSampler:
         hidden = h @ block["mlp.0.weight"] + block["mlp.0.bias"]
         _gelu_inplace(hidden.reshape(-1))
         return x + g2 * (hidden @ block["mlp.3.weight"] + block["mlp.3.bias"])
-
-    def _block_in_halves(self, x: np.ndarray, block: dict, terms, queries,
-                         map_halves) -> np.ndarray:
-        """:meth:`_block` with its rows in two halves through ``map_halves``: the keys and
-        values of all rows, then each half's attention and MLP. A row of a product comes out
-        the same whatever the other rows (``MIN_ROWS``), so the bits are :meth:`_block`'s;
-        a window sampled alone (a map's first ones) then uses both cores."""
-        s1, b1, g1, s2, b2, g2 = terms
-        n, d = x.shape
-        dh = d // self.cfg.heads
-        qkv = np.empty((n, 3 * d), F32)
-
-        def project(span: tuple[int, int]) -> None:
-            a, b = span
-            h = np.empty((b - a, d), F32)
-            _modulated_norm(x[a:b], s1, b1, h)
-            qkv[a:b] = h @ block["attn.in_proj_weight"] + block["attn.in_proj_bias"]
-
-        list(map_halves(project, _halves(n)))
-        qkv = qkv.reshape(n, 3, self.cfg.heads, dh).transpose(1, 2, 0, 3)  # (3, heads, n, dh)
-        keys = np.ascontiguousarray(qkv[1].transpose(0, 2, 1))
-        picked = np.arange(n) if queries is None else np.asarray(queries)
-        out = np.empty((len(picked), d), F32)
-
-        def finish(span: tuple[int, int]) -> None:
-            rows = picked[span[0]:span[1]]
-            scores = (qkv[0][:, rows] * F32(1.0 / math.sqrt(dh))) @ keys  # (heads, m, n)
-            _softmax_inplace(scores)
-            attended = (scores @ qkv[2]).transpose(1, 0, 2).reshape(len(rows), d)
-            y = x[rows] + g1 * (attended @ block["attn.out_proj.weight"]
-                                + block["attn.out_proj.bias"])
-            h = np.empty_like(y)
-            _modulated_norm(y, s2, b2, h)
-            hidden = h @ block["mlp.0.weight"] + block["mlp.0.bias"]
-            _gelu_inplace(hidden.reshape(-1))
-            out[span[0]:span[1]] = y + g2 * (hidden @ block["mlp.3.weight"]
-                                             + block["mlp.3.bias"])
-
-        list(map_halves(finish, _halves(len(picked))))
-        return out
 
     def _attention(self, h: np.ndarray, block: dict, queries=None) -> np.ndarray:
         """Self-attention of the rows of h, or of the rows ``queries`` only (over all of h)."""
@@ -285,20 +239,15 @@ class MaskGITSampler:
         the unknown positions stays masked; the sampled tokens with the highest log-probability
         plus annealed Gumbel noise are kept. ``mods`` come from :meth:`condition`; the trunks
         of its rows are independent, and ``map_rows`` (a thread pool's ``map``) may run them
-        side by side, or the halves of the one row's trunk (a transformer with the guidance
-        distilled into it)."""
+        side by side."""
         n = self.cfg.grid ** 2
         tokens = np.where(known_mask[:, None], known, 0)
         masked = ~known_mask
         unknown = int(masked.sum())
         for t in range(steps):
-            if len(mods) == 1 and map_rows is not map:
-                h_cond, h_free = self.trunk(tokens, masked, mods[0], np.flatnonzero(masked),
-                                            map_halves=map_rows), None
-            else:
-                features = partial(self._masked_features, tokens, masked)
-                h_cond, *h_free = map_rows(features, mods)
-                h_free = h_free[0] if h_free else None
+            features = partial(self._masked_features, tokens, masked)
+            h_cond, *h_free = map_rows(features, mods)
+            h_free = h_free[0] if h_free else None
             choice, logp = self._sample_masked(h_cond, h_free, rng, guidance, temperature)
             conf = np.zeros(n, F32)
             conf[masked] = logp
