@@ -477,13 +477,22 @@ def _outline(left: np.ndarray, right: np.ndarray) -> Polygon:
 def test_dead_end_uturn_outlines_never_cross_themselves():
     """At a dead end the innermost U-turn starts and ends its inner boundary on one centre line
     point; any loop through it makes the outline touch itself (CommonRoad counted such
-    lanelets). The lane pivots on that point instead, and every connector's outline is a valid
-    polygon, the U-turns between outer lanes (arterial arms) included."""
+    lanelets). The lane pivots on that point instead, on a half circle (an OpenDRIVE arc: a
+    Bezier, offset by readers, looped round the point), and every connector's outline is a
+    valid polygon, the U-turns between outer lanes (arterial arms) included."""
     hd = build_hdmap(t_junction())
     uturns = [lane for lane in hd.connectors() if lane.movement == "uturn"]
     assert {lane.junction for lane in uturns} == {1, 2, 3}  # the three dead ends
     for lane in hd.connectors():
         assert _outline(lane.left, lane.right).is_valid, lane.id
+    for lane in uturns:  # a half circle between the lane ends, written as an OpenDRIVE arc
+        (arc,) = lane.plan
+        radius = np.linalg.norm(lane.centre[-1] - lane.centre[0]) / 2
+        assert lane.bezier is None and arc.kind == "arc"
+        assert arc.curvature == pytest.approx(1 / radius) and arc.length == pytest.approx(
+            np.pi * radius)
+        middle = (lane.centre[0] + lane.centre[-1]) / 2
+        assert np.allclose(np.linalg.norm(lane.centre - middle, axis=1), radius)
     pivots = [lane for lane in uturns if (lane.left == lane.left[0]).all()]
     assert len(pivots) == 3 < len(uturns)  # the innermost pair of lanes at each dead end
     for lane in pivots:

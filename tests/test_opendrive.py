@@ -190,7 +190,7 @@ def test_geometry_lengths_are_true_lengths(exported):
             end = reference_pose(xr, float(nxt.get("s")) - 1e-12)
             assert math.dist(end[:2], (float(nxt.get("x")), float(nxt.get("y")))) < 1e-6
         line = hd.roads[int(name[1:])].reference[0] if name.startswith("r") \
-            else hd.lanes[name].bezier[[0, -1]]
+            else hd.lanes[name].centre[[0, -1]]
         assert math.dist(reference_pose(xr, 0.0)[:2], line[0]) < 1e-6
         assert math.dist(reference_pose(xr, xr.length)[:2], line[-1]) < 1e-6
 

@@ -5,7 +5,8 @@
   ``f`` lanes are right lanes ``-1..-n``, ``b`` lanes left lanes ``1..n`` (HD map index 0, the
   outermost lane, is ``-n`` / ``n``). Both ends link to junctions (chapter "Road linkage").
 * Every connector lane becomes a one-lane connecting road (ids after the roads, name = the
-  connector id) whose reference line is the connector's Bezier as an exact ``paramPoly3``;
+  connector id) whose reference line is the connector's Bezier as an exact ``paramPoly3``
+  (a U-turn: its half circle, an ``arc``);
   a ``laneOffset`` of half the (linearly changing) width centres lane ``-1`` on it.
 * Junction ids have a range of their own: junction of node ``n`` (name ``n<n>``) has id
   ``base + n``, ``base`` one past the highest road or connecting road id. Readers such as
@@ -65,9 +66,8 @@ def opendrive_tree(hd: HDMap) -> Element:
     for (rid, plan), view in zip(plans.items(), _plan_views(list(plans.values())), strict=True):
         root.append(_road(hd, hd.roads[rid], plan, view, signals.get(rid, []), junctions))
     connectors = hd.connectors()
-    pieces = bezier_pieces(np.array([lane.bezier for lane in connectors]).reshape(-1, 4, 2))
+    pieces, curves = _connector_pieces(connectors)
     geometries = _rows(_GEOMETRY, [p[1:6] for p in pieces])
-    curves = _rows(_PARAM_POLY3, [(*p.u, *p.v) for p in pieces])
     numbers = _connector_numbers(connectors, pieces)
     roads = [_connecting_road(hd, lane, connecting[lane.id], junctions[lane.junction], geometry,
                               curve, texts)
@@ -325,6 +325,18 @@ def _contact(lane: Lane, arriving: bool) -> str:
     return "end" if (lane.direction == "f") == arriving else "start"
 
 
+def _connector_pieces(connectors: list[Lane]) -> tuple[list[Piece], list[str]]:
+    """Each connector's one plan-view piece and the line that gives its shape: its Bezier as an
+    exact ``paramPoly3``, or the half circle of a U-turn (``lane.plan``) as an ``arc``."""
+    curved = [lane for lane in connectors if lane.plan is None]
+    beziers = iter(bezier_pieces(np.array([lane.bezier for lane in curved]).reshape(-1, 4, 2)))
+    pieces = [lane.plan[0] if lane.plan is not None else next(beziers) for lane in connectors]
+    polys = iter(_rows(_PARAM_POLY3, [(*p.u, *p.v) for p in pieces if p.kind == "paramPoly3"]))
+    arcs = iter(_rows('<arc curvature="{}"/>', [p.curvature for p in pieces if p.kind == "arc"],
+                      CURVATURE_DECIMALS))
+    return pieces, [next(arcs) if p.kind == "arc" else next(polys) for p in pieces]
+
+
 def _connector_numbers(connectors: list[Lane], pieces: list[Piece]) -> list[list[str]]:
     """Per connecting road its length, speed, lane offset (a, b) and width (a, b: linear
     along s) as written: formatted all at once (see :func:`_rows`)."""
@@ -339,8 +351,8 @@ def _connector_numbers(connectors: list[Lane], pieces: list[Piece]) -> list[list
 def _connecting_road(hd: HDMap, lane: Lane, rid: int, jid: int, geometry: str, curve: str,
                      numbers: list[str]) -> str:
     """A connector as a one-lane connecting road inside its junction ``jid`` (chapter "Junctions":
-    connecting roads), its ``<geometry>`` and ``<paramPoly3>`` lines ``geometry`` and
-    ``curve`` and its other ``numbers`` (:func:`_connector_numbers`), linked to its incoming
+    connecting roads), its ``<geometry>`` and ``<paramPoly3>`` (or ``<arc>``) lines ``geometry``
+    and ``curve`` and its other ``numbers`` (:func:`_connector_numbers`), linked to its incoming
     and outgoing road and lanes.
 
     Written as finished text (the most numerous road of a map: building it element by

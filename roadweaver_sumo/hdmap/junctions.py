@@ -7,6 +7,7 @@ lane's start, tangent to both, so the HD map's endpoint alignment error is zero 
 
 from __future__ import annotations
 
+import math
 from collections import defaultdict
 
 import numpy as np
@@ -21,6 +22,7 @@ from .geometry import (
 )
 from .lanes import LANE_CONFIGS, LaneEnds, lane_ends
 from .model import HDMap, Junction, Lane, Road
+from .reference import Piece, plan_points
 
 MIN_RADIUS = 2.0  # m: room for a connector even where a road just continues (degree-2 nodes)
 MARGIN = 1.0  # m: clearance added beyond the point where road edges meet
@@ -166,11 +168,18 @@ def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]],
     w0 = np.array([a.end_width for a in ins])
     w1 = np.array([b.width for b in outs])
     curves, turn_speed = _connector_curves(ctrl, w0, w1)
-    curves = [(centre, *_pivoted(left, right)) for centre, left, right in curves]
     lanes = []
-    for (node, in_id, out_id, movement), a, b, (centre, left, right), bezier, turn in zip(
-            plan, ins, outs, curves, ctrl, turn_speed.tolist(), strict=True):
+    for k, ((node, in_id, out_id, movement), a, b, bezier) in enumerate(
+            zip(plan, ins, outs, ctrl, strict=True)):
         junction = hd.junctions[node]
+        (centre, left, right), turn, arcs = curves[k], float(turn_speed[k]), None
+        if movement == "uturn":
+            half_circle = _half_circle(ends.end[i[k]], ends.end_tangent[i[k]],
+                                       ends.start[o[k]], a.end_width, b.width)
+            if half_circle is not None:
+                arcs, centre, left, right, turn = half_circle
+                bezier = None
+        left, right = _pivoted(left, right)
         lane = Lane(
             id=f"j{node}_{len(junction.connectors)}",
             kind="connector",
@@ -184,6 +193,7 @@ def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]],
             junction=node,
             movement=movement,
             bezier=bezier,
+            plan=arcs,
             predecessors=[in_id],
             successors=[out_id],
         )
@@ -191,6 +201,28 @@ def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]],
         junction.connectors.append(lane.id)
         lanes.append(lane)
     return lanes
+
+
+def _half_circle(start: np.ndarray, tangent: np.ndarray, end: np.ndarray, w0: float,
+                 w1: float):
+    """A U-turn from ``start`` (heading ``tangent``) to ``end`` on its left, heading back: the
+    half circle between them, exact in every file (an OpenDRIVE arc), with its centre line,
+    boundaries (widths blending from ``w0`` to ``w1``) and speed limit; None where ``end`` does
+    not lie to the left. Between the two lanes beside a road's centre line its inner boundary
+    is that centre line's end point (:func:`_pivoted`), as a Bezier's never quite was."""
+    gap = float(tangent[0] * (end[1] - start[1]) - tangent[1] * (end[0] - start[0]))
+    if gap <= 0.0:
+        return None
+    radius = gap / 2.0
+    arc = Piece("arc", 0.0, float(start[0]), float(start[1]),
+                math.atan2(float(tangent[1]), float(tangent[0])), math.pi * radius,
+                curvature=1.0 / radius)
+    centre, heading = plan_points([arc], start, end)
+    share = np.linspace(0.0, 1.0, len(centre))
+    half = (w0 + (w1 - w0) * share) / 2.0
+    tangents = np.column_stack([np.cos(heading), np.sin(heading)])
+    return ([arc], centre, offset_along(centre, tangents, half),
+            offset_along(centre, tangents, -half), math.sqrt(LATERAL_ACCEL * radius))
 
 
 def _pivoted(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

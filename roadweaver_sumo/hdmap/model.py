@@ -60,6 +60,8 @@ class Lane:
     junction: int | None = None  # connectors: node id
     movement: str | None = None  # connectors: one of MOVEMENTS
     bezier: np.ndarray | None = None  # connectors: (4, 2) cubic Bezier control points
+    #: U-turn connectors: their half circle (one ``reference.Piece``), instead of ``bezier``
+    plan: list | None = None
     successors: list[str] = field(default_factory=list)
     predecessors: list[str] = field(default_factory=list)
     left_neighbour: str | None = None
