@@ -4,7 +4,7 @@ netconvert re-import of the ``.xodr``. None of them shares code with the generat
 sees the files as a user's tool would.
 
     python bench/readers.py DIR [DIR ...] [--qc-python PY] [--asam-every N] [--esmini-roads N]
-                           [--cr-python PY] [--cr-every N]
+                           [--cr-python PY] [--cr-every N] [--cr-roads N]
 
 A DIR is a scenario folder (it holds ``map.xodr``) or a folder of them. Prints one JSON line
 per folder as it goes (each reader's figures and ``problem``: null when it accepted the map),
@@ -307,7 +307,7 @@ def netconvert_reimport(xodr: Path, work: Path) -> dict:
 
 
 def check_folder(folder: Path, qc_python: str | None, esmini_roads: int,
-                 cr_python: str | None = None) -> dict:
+                 cr_python: str | None = None, cr_roads: int = 2000) -> dict:
     """Every reader on one scenario folder, each in a fresh temp dir; a reader that raises
     is recorded as failed, with the first line of its error as the problem. esmini is left
     out of maps with more than ``esmini_roads`` roads: it looks roads up by id with a linear
@@ -327,7 +327,8 @@ def check_folder(folder: Path, qc_python: str | None, esmini_roads: int,
     for name, reader in readers.items():
         if (name == "asam" and not qc_python) or (name == "commonroad" and not cr_python):
             continue
-        if name in ("odrplot", "esmini") and roads > esmini_roads:
+        if (name in ("odrplot", "esmini") and roads > esmini_roads) or (
+                name == "commonroad" and roads > cr_roads):
             row[name] = {"skipped": f"{roads} roads", "problem": None, "seconds": 0.0}
             continue
         start = time.perf_counter()
@@ -402,6 +403,8 @@ def main() -> None:
                     help="python of a venv with commonroad-scenario-designer")
     ap.add_argument("--cr-every", type=int, default=1,
                     help="CommonRoad conversion on every N-th map (a 1 km map takes ~30 s)")
+    ap.add_argument("--cr-roads", type=int, default=2000,
+                    help="leave CommonRoad out of maps with more roads (2.5 km: over 5 min)")
     ap.add_argument("--esmini-roads", type=int, default=5000,
                     help="leave esmini out of maps with more roads (its load is quadratic)")
     args = ap.parse_args()
@@ -418,7 +421,7 @@ def main() -> None:
         asam_now = index % max(args.asam_every, 1) == 0
         cr_now = index % max(args.cr_every, 1) == 0
         rows.append(check_folder(folder, qc if asam_now else None, args.esmini_roads,
-                                 cr if cr_now else None))
+                                 cr if cr_now else None, args.cr_roads))
         print(json.dumps(rows[-1]), flush=True)
     print("\n".join(totals(rows)), flush=True)
 
