@@ -114,8 +114,8 @@ def scratch_dir() -> Path | None:
 
 def remove_stale(out_dir: Path) -> list[Path]:
     """Remove what killed runs on ``out_dir`` left beside it: ``.NAME.partial-PID-*`` folders
-    (or files: a checkpoint being written), and ``.NAME.old-PID`` (the previous output, moved aside while the new one moved in; put
-    back if ``out_dir`` is missing). Only where process PID is gone. Returns what was
+    (or files: a checkpoint being written), and ``.NAME.old-PID`` (the previous output, moved
+    aside while the new one moved in; put back if ``out_dir`` is missing). Only where process PID is gone. Returns what was
     removed or put back."""
     out_dir = Path(out_dir)
     parent = out_dir.parent if str(out_dir.parent) else Path(".")

@@ -101,8 +101,8 @@ def test_lanes_offset_from_a_sampled_plan_never_fold():
     lines = _tight_lines()[:-1]
     plans = fillet_plans(lines, LANE_CONFIGS["arterial"].min_radius)
     for line, plan in zip(lines, plans, strict=True):
-        points, heading = plan_points(plan, line[0], line[-1])
+        points, tangents = plan_points(plan, line[0], line[-1])
         assert (points[0] == line[0]).all() and (points[-1] == line[-1]).all()
-        normal = np.column_stack([-np.sin(heading), np.cos(heading)])
+        normal = np.column_stack([-tangents[:, 1], tangents[:, 0]])
         outline = np.vstack([points + half * normal, (points - half * normal)[::-1]])
         assert shapely.Polygon(outline).is_valid

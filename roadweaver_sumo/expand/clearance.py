@@ -42,7 +42,7 @@ def clearance(class_a: str, class_b: str) -> float:
 
 def roads_too_close(G: nx.Graph) -> list[tuple[tuple, tuple]]:
     """Pairs of roads (edges, each sorted) that come within their clearance of each other
-    outside the junction areas near them (:func:`_junction_areas`). A bend node
+    outside the junction areas near them (:func:`_outside_junctions`). A bend node
     (degree 2) of one road is no junction of the other, nor is a dead end: a dead end whose
     last metres lie on another road is exactly such an overlap.
 

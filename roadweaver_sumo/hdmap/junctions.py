@@ -217,10 +217,9 @@ def _half_circle(start: np.ndarray, tangent: np.ndarray, end: np.ndarray, w0: fl
     arc = Piece("arc", 0.0, float(start[0]), float(start[1]),
                 math.atan2(float(tangent[1]), float(tangent[0])), math.pi * radius,
                 curvature=1.0 / radius)
-    centre, heading = plan_points([arc], start, end)
+    centre, tangents = plan_points([arc], start, end)
     share = np.linspace(0.0, 1.0, len(centre))
     half = (w0 + (w1 - w0) * share) / 2.0
-    tangents = np.column_stack([np.cos(heading), np.sin(heading)])
     return ([arc], centre, offset_along(centre, tangents, half),
             offset_along(centre, tangents, -half), math.sqrt(LATERAL_ACCEL * radius))
 

@@ -112,8 +112,7 @@ def build_road_lanes(road: Road) -> list[Lane]:
     """Offset a road's reference line (:func:`plan_reference_lines`) into lane boundaries and
     build the directional lanes of both driving directions."""
     n = LANE_CONFIGS[road.road_class].lanes
-    points, heading = road.reference
-    tangents = np.column_stack([np.cos(heading), np.sin(heading)])
+    points, tangents = road.reference
     both = offset_along(points, tangents, _lane_offsets(road.road_class)[:, None])
     lines = {"f": both[: 2 * n + 1], "b": both[2 * n + 1 :, ::-1]}
     return [lane for d in "fb" for lane in _directional_lanes(road, d, lines[d][: n + 1],

@@ -99,7 +99,7 @@ class Road:
     sections: list[LaneSection]
     #: lines and arcs of the reference line within the lane section (``hdmap.reference``)
     plan: list = field(default_factory=list)
-    #: ``plan`` sampled: the points the lanes are offset from and their headings (radians)
+    #: ``plan`` sampled: the points the lanes are offset from and their unit tangents
     reference: tuple[np.ndarray, np.ndarray] | None = None
 
     def lanes(self, direction: str) -> list[str]:

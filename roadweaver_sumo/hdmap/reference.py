@@ -252,10 +252,10 @@ def _append(pieces: list[Piece], piece: Piece) -> float:
 
 def plan_points(pieces: list[Piece], start: np.ndarray,
                 end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A plan as points and their headings: its lines' ends and its arcs sampled every
+    """A plan as points and their unit tangents: its lines' ends and its arcs sampled every
     ``ARC_STEP`` of turn, from ``start`` to ``end`` (the polyline's own end points, set exactly
     so that lane ends meet the connectors built from them). Lanes offset along the normals of
-    these headings are the plan's exact parallel curves at the samples, as an OpenDRIVE reader
+    these tangents are the plan's exact parallel curves at the samples, as an OpenDRIVE reader
     computes them; a miter offset of the chords would kink where an arc meets a line."""
     points, headings = [np.asarray(start, dtype=float)[None]], [pieces[0].hdg]
     for piece in pieces:
@@ -272,4 +272,5 @@ def plan_points(pieces: list[Piece], start: np.ndarray,
             headings.append(piece.hdg)
     out = np.vstack(points)
     out[-1] = end
-    return out, np.array(headings)
+    headings = np.array(headings)
+    return out, np.column_stack([np.cos(headings), np.sin(headings)])
