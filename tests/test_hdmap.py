@@ -406,9 +406,9 @@ def _same_bits(a, b) -> bool:
 
 
 def test_compiled_and_batched_hdmap_steps_match_numpy_bit_for_bit():
-    """Cuts, offsets, road end directions, Bezier samples and junction radii are compiled or
-    computed for a whole map at once; each must give the bits of its numpy formulation, or
-    the written maps would change."""
+    """Cuts, offsets, road end directions and Bezier samples are compiled or computed for a
+    whole map at once; each must give the bits of its numpy formulation, or the written maps
+    would change."""
     from roadweaver_sumo.hdmap.geometry import (
         _bernstein,
         _cross,
@@ -417,7 +417,6 @@ def test_compiled_and_batched_hdmap_steps_match_numpy_bit_for_bit():
         end_directions,
         offset,
     )
-    from roadweaver_sumo.hdmap.junctions import junction_radii, junction_radius
 
     rng = np.random.default_rng(1)
     lines = [np.cumsum(rng.normal(0, rng.choice([0.1, 5.0, 50.0]), (int(rng.integers(2, 30)), 2)),
@@ -450,14 +449,53 @@ def test_compiled_and_batched_hdmap_steps_match_numpy_bit_for_bit():
         numpy_way = (pts, vel / speed[..., None], _cross(vel, acc) / speed**3)
         assert all(map(_same_bits, bezier_sample(ctrl, n), numpy_way))
 
-    sizes = rng.integers(1, 7, 3000).tolist()
-    bearing = rng.uniform(-np.pi, np.pi, sum(sizes))
-    bearing[rng.random(len(bearing)) < 0.05] = 0.5  # ties: measured alone
-    directions = np.column_stack([np.cos(bearing), np.sin(bearing)])
-    half = rng.choice([3.0, 3.25, 7.0], len(bearing))
-    first = np.cumsum(sizes) - sizes
-    alone = [junction_radius(directions[f : f + n], half[f : f + n]) for f, n in zip(first, sizes)]
-    assert junction_radii(directions, half, sizes) == alone
+
+@pytest.mark.parametrize("angle", [35.0, 50.0, 65.0, 90.0, 120.0])
+@pytest.mark.parametrize("classes", [("arterial", "arterial"), ("arterial", "local"),
+                                     ("collector", "local")])
+def test_right_turns_leave_room_for_their_inner_lane_edge(angle, classes):
+    """Two roads meeting at ``angle`` degrees, a third opposite: every turn between them keeps
+    a radius of at least half its width, so that a reader offsetting the lane from its centre
+    line (OpenDRIVE: CommonRoad, pyxodr) sees no fold; the junction is no larger than that
+    needs (its tightest right turn is within a margin of it)."""
+    from roadweaver_sumo.hdmap.geometry import bezier_sample
+
+    a = np.radians(angle)
+    nodes = {0: (200.0, 200.0), 1: (350.0, 200.0),
+             2: (200.0 + 150.0 * np.cos(a), 200.0 + 150.0 * np.sin(a)),
+             3: (200.0 - 150.0 * np.cos(a / 2), 200.0 - 150.0 * np.sin(a / 2))}
+    hd = build_hdmap(_graph(nodes, [(0, 1, classes[0]), (0, 2, classes[1]), (0, 3, "local")]))
+    turns = [lane for lane in hd.connectors() if lane.bezier is not None]
+    _, _, curvature = bezier_sample(np.array([lane.bezier for lane in turns]))
+    half = np.array([max(lane.width, lane.end_width) / 2.0 for lane in turns])
+    room = 1.0 / np.abs(curvature).max(axis=1) - half
+    assert room.min() > 0.0
+    right = [k for k, lane in enumerate(turns) if lane.movement == "right"]
+    assert room[right].min() < 2.0  # LaneConfig's BEND_MARGIN, less the Bezier's tightening
+
+
+def test_a_junction_grows_until_its_turns_fit_where_a_road_bends_into_it(monkeypatch):
+    """A junction of a learned map (grid, 1.5 km, density 32, seed 5008, node 40) whose
+    arterial bends 50 degrees within 17 m of it: measured 5 m out, the arterial meets its
+    neighbour at another angle than its lane ends do, and the right turn between them folded.
+    The junction is widened until no turn folds; without widening one does."""
+    from roadweaver_sumo.hdmap import build
+    from roadweaver_sumo.hdmap.junctions import tight_turns
+
+    arms = [("arterial", [(-4.12, 11.75), (-5.55, 13.6), (-7.27, 15.23), (-9.28, 16.63),
+                          (-43.96, 37.34)]),
+            ("arterial", [(-59.97, -1.84)]), ("local", [(-10.93, -59.0)]),
+            ("arterial", [(58.56, 13.05)])]
+    nodes = {0: (100.0, 100.0)} | {k: (100.0 + pts[-1][0], 100.0 + pts[-1][1])
+                                   for k, (_, pts) in enumerate(arms, 1)}
+    roads = [(0, k, cls, *[(100.0 + x, 100.0 + y) for x, y in pts[:-1]])
+             for k, (cls, pts) in enumerate(arms, 1)]
+    hd = build_hdmap(_graph(nodes, roads, 200.0))
+    assert not tight_turns(hd.connectors())
+    monkeypatch.setattr(build, "WIDEN_ROUNDS", 0)
+    narrow = build_hdmap(_graph(nodes, roads, 200.0))
+    assert tight_turns(narrow.connectors()) == {0}
+    assert hd.junctions[0].radius > narrow.junctions[0].radius
 
 
 def test_a_graph_without_roads_gives_an_empty_map():
@@ -500,3 +538,24 @@ def test_dead_end_uturn_outlines_never_cross_themselves():
         assert np.array_equal(lane.left[0], before.left[-1])
         assert np.allclose(after.left[0], lane.left[0], rtol=0.0, atol=1e-9)
         assert _outline(lane.left, lane.right).area > 0.5 * np.pi * (lane.width / 2) ** 2
+
+
+def test_a_lane_section_starts_past_a_tight_bend_next_to_its_junction():
+    """An arterial that turns 90 degrees on a 3 m radius 10 m from its junction: the junction
+    trim lands just before the bend, whose arc at the lane section's start would fold the
+    lanes (and read as a sharp turn to netconvert). The section starts past the bend
+    instead; the junction's connectors take it, and no arc of the road is tighter than its
+    class allows."""
+    theta = np.radians(np.arange(0.0, 91.0, 10.0))
+    bend = [(210.0 + 3.0 * np.sin(t), 203.0 - 3.0 * np.cos(t)) for t in theta]
+    far = (bend[-1][0] + 150.0 * np.cos(theta[-1]), bend[-1][1] + 150.0 * np.sin(theta[-1]))
+    nodes = {0: (200.0, 200.0), 1: far, 2: (50.0, 200.0), 3: (200.0, 50.0)}
+    hd = build_hdmap(_graph(nodes, [(0, 1, "arterial", *bend), (0, 2, "arterial"),
+                                    (0, 3, "local")]))
+    road = next(r for r in hd.roads.values() if {r.from_node, r.to_node} == {0, 1})
+    least = LANE_CONFIGS["arterial"].min_radius
+    assert all(abs(p.curvature) * least <= 1.0 + 1e-9 for p in road.plan)
+    start = road.sections[0].s_start if road.from_node == 0 else \
+        arc_lengths(road.centreline)[-1] - road.sections[0].s_end
+    assert start > 10.0 + 3.0 * np.radians(90.0)
+    assert lane_reachability(hd) == 1.0

@@ -4,11 +4,16 @@ from __future__ import annotations
 
 import networkx as nx
 
-from .junctions import add_connectors, make_junctions
+from .junctions import add_connectors, make_junctions, tight_turns
 from .lanes import build_road_lanes, lane_ends, make_roads, plan_reference_lines
-from .model import HDMap
+from .model import HDMap, Road
 from .movements import junction_plan
 from .topology import add_successor_links, repair_topology
+
+#: A junction whose turn bends tighter than half its lane's width (its inner lane edge folds
+#: over where a reader offsets the lane from its centre line) grows by this factor, up to
+#: WIDEN_ROUNDS times; ``junction_radii`` gives enough room where roads run straight to it.
+WIDEN_FACTOR, WIDEN_ROUNDS = 1.25, 4
 
 
 def build_hdmap(
@@ -31,17 +36,34 @@ def build_hdmap(
     hd.roads = make_roads(G)  # RefineRoadGraph, AssignLaneConfig
     nodes = {n: G.nodes[n]["xy"] for n in G.nodes}
     hd.junctions = make_junctions(nodes, hd.roads, traffic_lights)
-    roads = list(hd.roads.values())
+    roads, junctions = list(hd.roads.values()), list(hd.junctions)
+    for _ in range(WIDEN_ROUNDS + 1):
+        tight = _lanes_and_connectors(hd, roads, junctions)
+        if not tight:
+            break
+        for node in tight:
+            hd.junctions[node].radius *= WIDEN_FACTOR
+        roads = [hd.roads[r] for r in sorted({r for node in tight for r in hd.junctions[node].roads})]
+        junctions = sorted({node for road in roads for node in (road.from_node, road.to_node)})
+    add_successor_links(hd)  # AddSuccessorLinks
+    repair_topology(hd)  # RepairTopology
+    return hd
+
+
+def _lanes_and_connectors(hd: HDMap, roads: list[Road], junctions: list[int]) -> set[int]:
+    """(Re)build the lane section, reference line and lanes of ``roads`` and the connectors of
+    ``junctions`` (those at the ends of ``roads``, or all); return the junctions with a tight
+    turn (``junctions.tight_turns``)."""
     plan_reference_lines(roads, [(hd.junctions[road.from_node].radius,
                                   hd.junctions[road.to_node].radius) for road in roads])
     for road in roads:  # GenerateLaneBoundaries, ConstructDirectionalLanes
         hd.lanes.update((lane.id, lane) for lane in build_road_lanes(road))
-    ends = lane_ends(hd.lanes.values())
-    nodes = list(hd.junctions)
-    plans = [junction_plan(hd, node, ends) for node in nodes]
-    plan = [(node, *entry) for node, entries in zip(nodes, plans, strict=True)
-            for entry in entries]
-    add_connectors(hd, plan, ends)  # ConstructJunctionConnections, MergeLaneInstances
-    add_successor_links(hd)  # AddSuccessorLinks
-    repair_topology(hd)  # RepairTopology
-    return hd
+    for node in junctions:
+        for lane_id in hd.junctions[node].connectors:
+            del hd.lanes[lane_id]
+        hd.junctions[node].connectors = []
+    touching = dict.fromkeys(lane_id for node in junctions for r in hd.junctions[node].roads
+                             for direction in "fb" for lane_id in hd.roads[r].lanes(direction))
+    ends = lane_ends(map(hd.lanes.__getitem__, touching))
+    plan = [(node, *entry) for node in junctions for entry in junction_plan(hd, node, ends)]
+    return tight_turns(add_connectors(hd, plan, ends))  # ConstructJunctionConnections

@@ -20,7 +20,7 @@ from .geometry import (
     end_directions,
     offset_along,
 )
-from .lanes import LANE_CONFIGS, LaneEnds, lane_ends
+from .lanes import BEND_MARGIN, LANE_CONFIGS, LaneEnds, lane_ends
 from .model import HDMap, Junction, Lane, Road
 from .reference import Piece, plan_points
 
@@ -55,62 +55,49 @@ def junction_type(classes: list[str], traffic_lights: bool = True) -> str:
     return "priority"
 
 
-def junction_radius(directions: np.ndarray, half_widths: np.ndarray) -> float:
-    """How far lane ends stay back from the junction centre, from the crossing roads' widths.
-
-    For two neighbouring roads at angle ``a`` with half widths ``w_i``, ``w_j``, their facing
-    edges meet ``(w_j + w_i cos a) / sin a`` along road ``i``; the radius clears the largest of
-    these (angles clipped at 30 degrees) plus a margin. Dead ends keep room for a turnaround.
-    """
-    if len(directions) == 1:
-        return max(MIN_RADIUS, float(half_widths[0]))
-    bearing = np.arctan2(directions[:, 1], directions[:, 0])
-    order = np.argsort(bearing)
-    b, w = bearing[order], half_widths[order]
-    gap = np.mod(np.roll(b, -1) - b, 2 * np.pi)  # angle from each road to the next one
-    wi, wj = w, np.roll(w, -1)
-    near = gap < NEAR_STRAIGHT
-    if not near.any():
-        return MIN_RADIUS
-    a = np.maximum(gap[near], MIN_ANGLE)
-    wi, wj = wi[near], wj[near]
-    reach = np.maximum(wj + wi * np.cos(a), wi + wj * np.cos(a)) / np.sin(a)
-    return max(MIN_RADIUS, float(reach.max()) + MARGIN)
-
-
-def junction_radii(directions: np.ndarray, half_widths: np.ndarray,
+def junction_radii(directions: np.ndarray, half_widths: np.ndarray, lane_widths: np.ndarray,
                    sizes: list[int]) -> list[float]:
-    """``junction_radius`` of many junctions at once, the same bits: junction k's roads are
-    the next ``sizes[k]`` rows. Each junction's roads are sorted by bearing in one stable
-    sort; a junction with two equal bearings (or a NaN) is measured alone, since there
-    ``np.argsort``'s order of the ties decides."""
+    """How far lane ends stay back from each junction's centre: junction k's roads are the next
+    ``sizes[k]`` rows of ``directions`` (unit, leaving the junction), ``half_widths`` and
+    ``lane_widths``.
+
+    Two neighbouring roads at angle ``a`` (clipped at 30 degrees) ask for two things. Their
+    facing edges, at half widths ``w_i`` and ``w_j``, meet ``(w_j + w_i cos a) / sin a`` along
+    road ``i``: the lanes end ``MARGIN`` beyond that. And the right turn between them, from the
+    outer lane of one to the outer lane of the other (centres ``d = w - lane width / 2`` from
+    the roads' centre lines, crossing ``(d_j + d_i cos a) / sin a`` along road ``i``), needs
+    room for a fillet whose inner lane edge keeps ``BEND_MARGIN`` of radius: a tangent of
+    ``(lane width / 2 + BEND_MARGIN) / tan(a / 2)``. Narrower room makes its inner edge fold
+    over wherever a reader offsets lanes from the connector's centre line (OpenDRIVE readers:
+    CommonRoad, pyxodr), the way a 120-degree right turn between arterials did. Roads at
+    ``NEAR_STRAIGHT`` or more from their neighbour ask for nothing; dead ends keep room for a
+    turnaround.
+    """
     if not sizes:
         return []
     sizes = np.asarray(sizes)
     first = np.cumsum(sizes) - sizes
     group = np.repeat(np.arange(len(sizes)), sizes)
     bearing = np.arctan2(directions[:, 1], directions[:, 0])
-    order = np.lexsort((bearing, group))
-    b, w = bearing[order], half_widths[order]
+    order = np.lexsort((bearing, group))  # ties keep their row order
+    b, w, lane = bearing[order], half_widths[order], lane_widths[order]
     after = np.arange(1, len(b) + 1)  # each road's next one round its junction
     after[first + sizes - 1] = first
     gap = np.mod(b[after] - b, 2 * np.pi)
-    wi, wj = w, w[after]
-    near = gap < NEAR_STRAIGHT
+    near = (gap < NEAR_STRAIGHT) & (after != np.arange(len(b)))
     a = np.maximum(gap[near], MIN_ANGLE)
-    reach = np.full(len(b), -np.inf)
-    reach[near] = np.maximum(wj[near] + wi[near] * np.cos(a),
-                             wi[near] + wj[near] * np.cos(a)) / np.sin(a)
-    most = np.maximum.reduceat(reach, first) + MARGIN  # -inf where no neighbours are near
-    radius = np.where(most > MIN_RADIUS, most, MIN_RADIUS)  # as max(): a NaN gives MIN_RADIUS
-    end = half_widths[first]
-    radius[sizes == 1] = np.where(end > MIN_RADIUS, end, MIN_RADIUS)[sizes == 1]
-    radii = radius.tolist()
-    alone = (b[after] == b) | np.isnan(b)
-    for k in np.unique(group[alone & (sizes[group] > 1)]).tolist():
-        rows = slice(first[k], first[k] + sizes[k])
-        radii[k] = junction_radius(directions[rows], half_widths[rows])
-    return radii
+    wi, wj = w[near], w[after][near]
+    li, lj = lane[near], lane[after][near]
+    di, dj = wi - li / 2.0, wj - lj / 2.0
+    edges = np.maximum(wj + wi * np.cos(a), wi + wj * np.cos(a)) / np.sin(a) + MARGIN
+    turn = (np.maximum(dj + di * np.cos(a), di + dj * np.cos(a)) / np.sin(a)
+            + (np.maximum(li, lj) / 2.0 + BEND_MARGIN) / np.tan(a / 2.0))
+    reach = np.full(len(b), MIN_RADIUS)
+    reach[near] = np.maximum(np.maximum(edges, turn), MIN_RADIUS)
+    radius = np.maximum.reduceat(reach, first)
+    dead_end = sizes == 1
+    radius[dead_end] = np.maximum(half_widths[first[dead_end]], MIN_RADIUS)
+    return radius.tolist()
 
 
 def make_junctions(
@@ -128,9 +115,9 @@ def make_junctions(
     incidents = [sorted(incident[node]) for node in nodes_in_order]
     dirs = heads[[row[r] + (roads[r].from_node != node)
                   for node, rids in zip(nodes_in_order, incidents, strict=True) for r in rids]]
-    half = np.array([LANE_CONFIGS[roads[r].road_class].half_width
-                     for rids in incidents for r in rids])
-    radii = junction_radii(dirs, half, [len(rids) for rids in incidents])
+    configs = [LANE_CONFIGS[roads[r].road_class] for rids in incidents for r in rids]
+    radii = junction_radii(dirs, np.array([c.half_width for c in configs]),
+                           np.array([c.width for c in configs]), [len(rids) for rids in incidents])
     return {
         node: Junction(
             id=node,
@@ -201,6 +188,19 @@ def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]],
         junction.connectors.append(lane.id)
         lanes.append(lane)
     return lanes
+
+
+def tight_turns(connectors: list[Lane]) -> set[int]:
+    """Junctions of the ``connectors`` that turn (not U-turns, which pivot on purpose) more
+    tightly than half their width anywhere: the HD map pulls their inner edge in, but a
+    reader that offsets the lane from its centre line at constant width sees it fold over."""
+    turns = [lane for lane in connectors if lane.bezier is not None and lane.movement != "uturn"]
+    if not turns:
+        return set()
+    _, _, curvature = bezier_sample(np.array([lane.bezier for lane in turns]))
+    half = np.array([max(lane.width, lane.end_width) / 2.0 for lane in turns])
+    return {lane.junction for lane, fold in zip(turns, np.abs(curvature).max(axis=1) * half > 1.0,
+                                                strict=True) if fold}
 
 
 def _half_circle(start: np.ndarray, tangent: np.ndarray, end: np.ndarray, w0: float,

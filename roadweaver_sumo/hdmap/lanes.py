@@ -16,7 +16,7 @@ import numpy as np
 
 from .geometry import arc_lengths, cut, dedupe, offset_along, unit_tangent
 from .model import Lane, LaneSection, Road, road_lane_id
-from .reference import fillet_plans, plan_points
+from .reference import Piece, fillet_plans, plan_points
 
 
 @dataclass(frozen=True)
@@ -60,6 +60,9 @@ MAX_TRIM_SHARE = 0.4
 # of 1-7 m radius); the road graph's bends turn at most ~30 degrees a vertex, whose 5 m fillet
 # and 1 m end line (``reference.fillet_plans``) need 2.4 m.
 END_STRAIGHT = 3.0
+#: m: a bend too tight for the road's class this close to a lane section's end moves the end
+#: past it (``_past_end_bends``).
+END_BEND = 10.0
 
 
 def make_roads(G: nx.Graph) -> dict[int, Road]:
@@ -93,19 +96,55 @@ def plan_reference_lines(roads: list[Road], trims: list[tuple[float, float]]) ->
     RefineRoadGraph), all roads in one batch. The centreline is cut back by the trims, with
     no vertex within ``END_STRAIGHT`` of a cut end, and its corners filleted with arcs of at
     least the class's ``min_radius``."""
-    lines = []
+    radii = [LANE_CONFIGS[road.road_class].min_radius for road in roads]
+    cuts = []
     for road, (trim_start, trim_end) in zip(roads, trims, strict=True):
         length = float(arc_lengths(road.centreline)[-1])
-        s0 = min(trim_start, MAX_TRIM_SHARE * length)
-        s1 = length - min(trim_end, MAX_TRIM_SHARE * length)
+        cuts.append((min(trim_start, MAX_TRIM_SHARE * length),
+                     length - min(trim_end, MAX_TRIM_SHARE * length), length))
+    plans, lines = _filleted(roads, cuts, radii)
+    moved = []
+    for k, (plan, (s0, s1, length)) in enumerate(zip(plans, cuts, strict=True)):
+        ends = _past_end_bends(plan, radii[k], s0, s1, length)
+        if ends != (s0, s1):
+            cuts[k] = (*ends, length)
+            moved.append(k)
+    if moved:
+        again, again_lines = _filleted([roads[k] for k in moved], [cuts[k] for k in moved],
+                                       [radii[k] for k in moved])
+        for k, plan, line in zip(moved, again, again_lines, strict=True):
+            plans[k], lines[k] = plan, line
+    for road, (s0, s1, _), line, plan in zip(roads, cuts, lines, plans, strict=True):
         n = LANE_CONFIGS[road.road_class].lanes
         ids = {d: [road_lane_id(road.id, d, k) for k in range(n)] for d in "fb"}
         road.sections = [LaneSection(s0, s1, ids["f"], ids["b"])]
-        lines.append(cut(road.centreline, s0, s1, gap=END_STRAIGHT))
-    radii = [LANE_CONFIGS[road.road_class].min_radius for road in roads]
-    for road, line, plan in zip(roads, lines, fillet_plans(lines, radii), strict=True):
         road.plan = plan
         road.reference = plan_points(plan, line[0], line[-1])
+
+
+def _filleted(roads: list[Road], cuts: list[tuple[float, float, float]], radii: list[float]):
+    """The plans and cut centrelines of ``roads`` between their ``cuts`` (start, end, length)."""
+    lines = [cut(road.centreline, s0, s1, gap=END_STRAIGHT)
+             for road, (s0, s1, _) in zip(roads, cuts, strict=True)]
+    return fillet_plans(lines, radii), lines
+
+
+def _past_end_bends(plan: list[Piece], least: float, s0: float, s1: float,
+                    length: float) -> tuple[float, float]:
+    """The lane section's ends moved past a bend tighter than ``least`` within ``END_BEND``
+    of them (into the junction, whose connectors take the bend), as far as
+    ``MAX_TRIM_SHARE`` allows. Such a bend is what is left of a road-graph bend that the
+    junction trim cut into; at a lane section's end it folds the lanes and reads as a sharp
+    turn to netconvert."""
+    tight = [p for p in plan if p.kind == "arc" and abs(p.curvature) * least > 1.0 + 1e-9]
+    if not tight:
+        return s0, s1
+    total = plan[-1].s + plan[-1].length
+    if tight[0].s < END_BEND:
+        s0 = max(s0, min(s0 + tight[0].s + tight[0].length, MAX_TRIM_SHARE * length))
+    if total - tight[-1].s - tight[-1].length < END_BEND:
+        s1 = min(s1, max(s1 - (total - tight[-1].s), length - MAX_TRIM_SHARE * length))
+    return s0, s1
 
 
 def build_road_lanes(road: Road) -> list[Lane]:
