@@ -21,6 +21,7 @@ import shapely.ops
 from scipy.spatial import cKDTree
 
 from ..compiled import F8, F8_1D, F8_2D, F8_2D_ANY, I8_1D, compiled
+from ..hdmap.lanes import LANE_CONFIGS
 from ..metrics import SHARP_BEND_DEG, SHARP_BEND_REACH_M, sharp_bend_at, sharp_bend_roads
 from ..roadgraph import (
     ROAD_CLASSES,
@@ -825,65 +826,99 @@ def turn_angles(coords: np.ndarray) -> np.ndarray:
     return np.abs((np.diff(heading) + np.pi) % (2 * np.pi) - np.pi)
 
 
+#: A fillet's tangents take at most this share of each leg of its corner, so that the fillets
+#: of two corners on one leg never overlap.
+FILLET_SHARE = 0.45
+
+
 def round_corners(coords: np.ndarray, max_turn_deg: float, radius: float) -> np.ndarray:
     """Replace every vertex that turns by more than ``max_turn_deg`` with a quadratic Bézier
-    fillet, so lanes offset from the centreline do not fold over at sharp bends."""
-    coords = coords[np.r_[True, np.hypot(*np.diff(coords, axis=0).T) > 1e-6]]
+    fillet (tangents of ``radius`` metres, less on short legs), so lanes offset from the
+    centreline do not fold over at sharp bends."""
+    coords = _distinct(coords)
     if len(coords) < 3:
         return coords
+    limit = math.radians(max_turn_deg)
     turns = turn_angles(coords)
-    if turns.max() <= math.radians(max_turn_deg):
+    if turns.max() <= limit:
         return coords
-    return _filleted(coords, turns, math.radians(max_turn_deg), radius)
-
-
-@compiled(F8_2D(F8_2D_ANY, F8_1D, F8, F8))
-def _filleted(coords, turns, limit, radius):
-    """:func:`round_corners`' fillets, compiled (a learned map's roads have thousands of
-    sharp vertices, a dozen numpy calls each): every float operation as numpy did them,
-    in the same order (``linspace``: i · (1 / (n - 1)), its last point 1), so the same bits."""
-    size = 2
-    for k in range(len(turns)):
-        size += max(3, int(math.degrees(turns[k]) / 10) + 2) if turns[k] > limit else 1
-    out = np.empty((size, 2))
-    out[0] = coords[0]
-    m = 1
+    out = [coords[:1]]
     for k in range(1, len(coords) - 1):
-        bx, by = coords[k, 0], coords[k, 1]
+        a, b, c = coords[k - 1], coords[k], coords[k + 1]
         if turns[k - 1] <= limit:
-            out[m, 0], out[m, 1] = bx, by
-            m += 1
+            out.append(coords[k:k + 1])
             continue
-        ax, ay, cx, cy = coords[k - 1, 0], coords[k - 1, 1], coords[k + 1, 0], coords[k + 1, 1]
-        ab, bc = math.hypot(bx - ax, by - ay), math.hypot(cx - bx, cy - by)
-        r = min(radius, 0.45 * ab, 0.45 * bc)
-        p0x, p0y = bx + (ax - bx) * (r / ab), by + (ay - by) * (r / ab)
-        p2x, p2y = bx + (cx - bx) * (r / bc), by + (cy - by) * (r / bc)
-        n = max(3, int(math.degrees(turns[k - 1]) / 10) + 2)
-        step = 1.0 / (n - 1)
-        for i in range(n):
-            t = 1.0 if i == n - 1 else i * step
-            u = 1.0 - t
-            out[m, 0] = u * u * p0x + 2.0 * u * t * bx + t * t * p2x
-            out[m, 1] = u * u * p0y + 2.0 * u * t * by + t * t * p2y
-            m += 1
-    out[m] = coords[-1]
-    return out
+        ab, bc = np.hypot(*(b - a)), np.hypot(*(c - b))
+        r = min(radius, FILLET_SHARE * ab, FILLET_SHARE * bc)
+        p0, p2 = b + (a - b) * (r / ab), b + (c - b) * (r / bc)
+        t = np.linspace(0.0, 1.0, max(3, int(math.degrees(turns[k - 1]) / 10) + 2))[:, None]
+        out.append((1 - t) ** 2 * p0 + 2 * (1 - t) * t * b + t**2 * p2)
+    out.append(coords[-1:])
+    return np.concatenate(out)
+
+
+def _distinct(coords: np.ndarray) -> np.ndarray:
+    """``coords`` without points within a micrometre of the one before."""
+    return coords[np.r_[True, np.hypot(*np.diff(coords, axis=0).T) > 1e-6]]
+
+
+def without_jogs(coords: np.ndarray, max_turn_deg: float, least_radius: float) -> np.ndarray:
+    """``coords`` with every corner that turns more than ``max_turn_deg`` given the room its
+    fillet (:func:`round_corners`) needs for a radius of ``least_radius``: where the leg to
+    an interior neighbour is shorter, that neighbour goes, or, when it is such a corner too,
+    the two become one at the middle of their leg; shortest leg first.
+
+    Such pairs are one bend drawn as a jog (a step of the traced skeleton) or a corner where
+    two roads were joined at a dissolved junction next to a vertex of a traced curve.
+    Filleted one by one, such a corner gets a radius of a few metres or less, and lanes
+    offset from the centreline fold over (CommonRoad's self-intersecting lanelets, paper
+    §III-D). A fillet with tangents ``t`` turning by ``θ`` has a least radius of
+    t·cos²(θ/2)/sin(θ/2)."""
+    coords = _distinct(coords)
+    limit = math.radians(max_turn_deg)
+    while len(coords) >= 4:
+        half_turns = np.r_[0.0, turn_angles(coords) / 2, 0.0]
+        sharp = half_turns > limit / 2
+        needs = np.where(sharp, least_radius * np.sin(half_turns) / np.cos(half_turns) ** 2
+                         / FILLET_SHARE, 0.0)
+        legs = np.hypot(*np.diff(coords, axis=0).T)
+        short = legs < np.maximum(needs[:-1], needs[1:])
+        short[[0, -1]] = False  # a road's end node stays
+        if not short.any():
+            break
+        k = np.flatnonzero(short)[np.argmin(legs[short])]
+        if sharp[k] and sharp[k + 1]:
+            coords = np.vstack([coords[:k], (coords[k] + coords[k + 1]) / 2, coords[k + 2:]])
+        else:
+            coords = np.delete(coords, k if sharp[k + 1] else k + 1, axis=0)
+    return coords
 
 
 def smooth_bends(G: nx.Graph, max_turn_deg: float = 30.0, radius: float = 20.0) -> None:
-    """Round the sharp bends of every road (perimeter corners, joins at dissolved nodes).
+    """Round the sharp bends of every road (perimeter corners, joins at dissolved nodes),
+    jogs first merged into one corner (:func:`without_jogs`) unless that brings the road
+    within another's clearance (:func:`.clearance.roads_too_close`).
 
     Most roads are smooth already (clean-up runs several times): one vectorised pass finds the
     roads that clearly have no repeated point and no sharp bend, which :func:`round_corners`
     would return unchanged; the others, and any near those limits, go through it."""
-    roads = [data for _, _, data in edge_list(G)]
+    roads = edge_list(G)
     if not roads:
         return
     straighten_road_ends(G)
-    for k in np.flatnonzero(_maybe_sharp([data["coords"] for data in roads], max_turn_deg)):
-        data = roads[k]
-        data["coords"] = round_corners(data["coords"], max_turn_deg, radius)
+    jogged = {}
+    for k in np.flatnonzero(_maybe_sharp([data["coords"] for _, _, data in roads],
+                                         max_turn_deg)):
+        u, v, data = roads[k]
+        coords = data["coords"]
+        merged = without_jogs(coords, max_turn_deg, LANE_CONFIGS[data["road_class"]].min_radius)
+        if len(merged) < len(_distinct(coords)):
+            jogged[tuple(sorted((u, v)))] = coords
+        data["coords"] = round_corners(merged, max_turn_deg, radius)
+    if jogged:
+        for pair in roads_too_close(G):
+            for e in set(pair) & jogged.keys():
+                G.edges[e]["coords"] = round_corners(jogged.pop(e), max_turn_deg, radius)
     straighten_road_ends(G)  # fillets of bends close to a junction
 
 
