@@ -14,9 +14,9 @@ lanelet2 check) goes through :func:`popen` or :func:`run`, which
   :func:`handle_termination` kill every live child's group before this process exits.
 
 Linux sends the parent-death signal when the *thread* that started the child ends, so a child
-must be waited for by the thread that started it (every caller here does). Forked workers
-(``forked.py``) and pool workers (``suite/engines.py``) are not started through ``popen``; they
-call :func:`die_with_parent` themselves.
+must be waited for by the thread that started it (every caller here does). Pool workers
+(``suite/engines.py``) are not started through ``popen``; they call :func:`die_with_parent`
+themselves.
 """
 
 from __future__ import annotations
@@ -192,19 +192,3 @@ def handle_termination(before_exit: Callable[[int], None]) -> Iterator[None]:
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
-
-
-def forget_inherited(parent_pid: int) -> None:
-    """In a forked child of ``parent_pid``: the parent's children and signal handlers are not
-    this process's; SIGTERM ends it, SIGINT raises KeyboardInterrupt, and it dies with its
-    parent."""
-    global _watchdog, _watchdog_lock
-    _live.clear()
-    _watchdog_lock = threading.Lock()  # another thread may have held it at the fork
-    if _watchdog is not None:  # the parent's: its end of the pipe must close with the parent
-        _watchdog.stdin.close()
-        _watchdog = None
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-    die_with_parent(parent_pid)

@@ -27,13 +27,11 @@ class EdgeIndex:
         self.lines: dict[tuple, LineString] = {}
         self.add_many(list(G.edges))
         self._top = max(G.nodes, default=-1)
-        #: the road (its key when the index was made) each piece of a split road was cut from
-        self.origin: dict[tuple, tuple] = {}
 
     def new_node_id(self) -> int:
-        """``max(G.nodes) + 1`` without scanning every node (a scan per split made the density
-        fill quadratic: 1.1 s of a 20 km map). Exact while nodes are only added with the next
-        id, as the fill does, and none removed."""
+        """``max(G.nodes) + 1`` without scanning every node (a scan per split would make the
+        density fill quadratic). Exact while nodes are only added with the next id, as the
+        fill does, and none removed."""
         while self._top + 1 in self.G:
             self._top += 1
         self._top += 1

@@ -14,24 +14,23 @@ bridges are removed, shortest first.
 from __future__ import annotations
 
 import heapq
-import itertools
 import math
 from functools import partial
-from operator import itemgetter
 
 import networkx as nx
 import numpy as np
 import shapely
+import shapely.ops
 from scipy.spatial import cKDTree
 from shapely.geometry import LineString, Point, Polygon
 
-from .. import forked
 from ..metrics import road_node_count
 from ..roadgraph import add_road, edge_coords, edge_length, edge_list
 from ..streamlines import choose_axis, follow_field
 from ..tensor_field import TensorField
-from .edge_index import EdgeIndex, edge_key
-from .planar import point_along, road_lines
+from .cleanup import point_along
+from .edge_index import EdgeIndex
+from .planar import road_lines
 
 STEP = 20.0  # metres per Euler step of a fill road (locals are short and gently curved)
 CONTINUE_SHARE = 0.5  # share of blocks first offered a continuation of a side street
@@ -53,84 +52,17 @@ def fill_to_density(
     min_angle: float,
     stub: float = 0.0,
 ) -> None:
-    """Split blocks until ``road_node_count(G) >= target`` or no block can be split, counting
-    the road nodes as the clean-up will leave them (``stub``: see :func:`counted_change`).
-
-    A fill of at least HALVES_MIN_NODES road nodes uses both cores. The blocks are put in two
-    groups of about the same area, on either side of a line across the map (by centroid; a
-    block too large for the two to balance is split first, here). Each group is filled by
-    its own process, with its share of the nodes by area and a random stream of its own, the
-    second in a forked child; a road between the two groups may get junctions from both, and
-    :func:`_merge_fill` puts the child's junctions and roads into this process's graph. What
-    is still missing then (a group that ran out of blocks) is filled here. Where no child can
-    be forked the second group is filled on a copy of the graph, with the same result."""
-    blocks = sorted(faces(G), key=lambda f: f.bounds)
+    """Split blocks, largest first (and the blocks their splits make), until
+    ``road_node_count(G) >= target`` or no block can be split, counting the road nodes as the
+    clean-up will leave them (``stub``: see :func:`counted_change`)."""
     need = target - road_node_count(G)
-    if need < HALVES_MIN_NODES:
-        _split_blocks(G, blocks, need, field, rng, min_edge, min_angle, stub)
-        return
-    area = sum(f.area for f in blocks)
-    index = EdgeIndex(G)  # one road index for the first splits and this process's group
-    added, blocks = _split_blocks(G, blocks, need, field, rng, min_edge, min_angle, stub,
-                                  largest=BALANCE_SHARE * area, index=index)
-    index.origin.clear()  # the pieces the first splits made are roads of their own now
-    need -= added
-    if need <= 0 or not blocks:
-        return
-    first, second = _two_groups(blocks)
-    first_need = round(need * sum(f.area for f in first) / area)
-    first_rng, second_rng = rng.spawn(2)
-    top = max(G.nodes)
-    # A forked child's graph is its own, as it was when forked; else a copy made now.
-    H = G if forked.can_fork() else G.copy()
-
-    def second_group() -> tuple:
-        before = {edge_key(u, v): d for u, v, d in H.edges(data=True)}
-        # A forked child has this process's road index as it was when forked; a copy its own.
-        own = index if H is G else EdgeIndex(H)
-        added, left = _split_blocks(H, second, need - first_need, field, second_rng,
-                                    min_edge, min_angle, stub, index=own)
-        return added, left, _fill_changes(H, top, before, own)
-
-    (first_added, first_left), (second_added, second_left, changes) = forked.beside(
-        second_group, lambda: _split_blocks(G, first, first_need, field, first_rng, min_edge,
-                                            min_angle, stub, index=index),
-        name="filling the second group of blocks")
-    _merge_fill(G, index, min_edge, *changes)
-    rest = need - first_added - second_added
-    if rest > 0:
-        _split_blocks(G, first_left + second_left, rest, field, rng, min_edge, min_angle, stub)
-
-
-#: The fill is split over two processes from this many road nodes on (a 10 km map at density
-#: 30 adds 700-1,300). Learned maps, seed 0, density 30: 6 km (424 nodes) 0.66-0.72 s in one
-#: process against 0.38-0.43 s in two, 4 km (174) 0.24-0.25 against 0.16-0.23 s; 2 km maps
-#: up to density 60 add fewer.
-HALVES_MIN_NODES = 200
-#: Blocks larger than this share of the map's block area are split before the two groups are
-#: made: a learned skeleton can leave one block of 40-66 % of the map, and no line would then
-#: give the two processes equal areas. These splits are the fill's slowest (the block has
-#: thousands of vertices) and run on one core; at 0.25 instead, learned 10 km maps (seeds
-#: 0-4, three rounds) filled 0.056 s slower on average, seeds 0 and 2 0.04-0.16 s.
-BALANCE_SHARE = 0.45
-
-
-def _split_blocks(G: nx.Graph, blocks: list[Polygon], need: int, field: TensorField,
-                  rng: np.random.Generator, min_edge: float, min_angle: float, stub: float,
-                  largest: float = 0.0, index: EdgeIndex | None = None) -> tuple[int, list]:
-    """Split ``blocks`` (largest first, and the blocks their splits make) until the road-node
-    count has grown by ``need`` or no block is larger than ``largest``. Returns how much it
-    grew (as the clean-up will leave it) and the blocks left (in their first order).
-    ``index``: the graph's road index, which then also records which road each piece of a
-    split road was cut from."""
-    heap = [(-f.area, k, f) for k, f in enumerate(blocks)]
+    heap = [(-f.area, k, f) for k, f in enumerate(sorted(faces(G), key=lambda f: f.bounds))]
     heapq.heapify(heap)
     counter = len(heap)
-    if index is None:
-        index = EdgeIndex(G)
+    index = EdgeIndex(G)
     nodes = _NodePoints(G)
     count = 0
-    while heap and count < need and -heap[0][0] > largest:
+    while heap and count < need:
         _, _, face = heapq.heappop(heap)
         ends = None
         makers = [partial(split_chord, roads=index), partial(straight_chord, roads=index),
@@ -153,80 +85,6 @@ def _split_blocks(G: nx.Graph, blocks: list[Polygon], need: int, field: TensorFi
         for part in _split_face(face, chord, ends, index):
             heapq.heappush(heap, (-part.area, counter, part))
             counter += 1
-    return count, [face for _, _, face in sorted(heap, key=itemgetter(1))]
-
-
-def _two_groups(blocks: list[Polygon]) -> tuple[list, list]:
-    """The blocks on either side of the line across the map (west-east or south-north, by
-    centroid) that halves their area most nearly."""
-    area = shapely.area(blocks)
-    centres = shapely.centroid(blocks)
-    best = None
-    for position in (shapely.get_x(centres), shapely.get_y(centres)):
-        order = np.argsort(position, kind="stable")
-        below = np.cumsum(area[order])
-        k = int(np.argmin(np.abs(below - below[-1] / 2)))
-        if best is None or abs(below[k] - below[-1] / 2) < best[0]:
-            best = (abs(below[k] - below[-1] / 2), order[:k + 1])
-    in_first = np.zeros(len(blocks), bool)
-    in_first[best[1]] = True
-    return ([b for b, yes in zip(blocks, in_first, strict=True) if yes],
-            [b for b, yes in zip(blocks, in_first, strict=True) if not yes])
-
-
-def _fill_changes(H: nx.Graph, top: int, before: dict, index: EdgeIndex) -> tuple:
-    """What a fill changed in ``H`` (whose new node ids are above ``top``), for
-    :func:`_merge_fill`: where it split each road that was there ``before`` it (the positions
-    of the new junctions on it, by node), the nodes it added (with those junctions) and the
-    roads it added that are not pieces of those roads. ``before`` holds the edge data objects
-    (not their ids: a road removed and made again between the same two nodes could get a
-    freed object's id); ``index.origin`` says which road each piece was cut from."""
-    splits: dict = {}
-    for piece, road in index.origin.items():
-        if road in before and H.has_edge(*piece):
-            splits.setdefault(road, set()).update(n for n in piece if n > top)
-    added_nodes = {n: H.nodes[n]["xy"] for n in H.nodes if n > top}
-    added = [(u, v, d) for u, v, d in H.edges(data=True)
-             if before.get(edge_key(u, v)) is not d
-             and index.origin.get(edge_key(u, v)) not in before]
-    return {road: sorted(nodes) for road, nodes in sorted(splits.items())}, added_nodes, added
-
-
-def _merge_fill(G: nx.Graph, index: EdgeIndex, min_edge: float, splits: dict,
-                added_nodes: dict, added: list) -> None:
-    """Apply another process's :func:`_fill_changes` to ``G``, which a fill of other blocks
-    changed since the two were the same. Each junction the other made on a road is made here
-    on the piece of that road it lies on (or is the piece's end within ``min_edge``, as for a
-    chord of this process); the other nodes get the next free ids, in order; then its roads
-    are added. ``index`` is ``G``'s road index, pieces recorded."""
-    node_of = {}
-    for road, nodes in splits.items():
-        for n in nodes:
-            xy = added_nodes[n]
-            pieces = [key for key in index.near(Point(xy), 1e-6)
-                      if key == road or index.origin.get(key) == road]
-            if not pieces:  # not on the road as this process has it: cannot happen
-                raise AssertionError(f"junction {n} at {xy} is off road {road}")
-            node_of[n] = split_edge_at(G, pieces[0], xy, min_edge, index)
-    for n in sorted(added_nodes):
-        if n not in node_of:
-            node_of[n] = index.new_node_id()
-            G.add_node(node_of[n], xy=added_nodes[n])
-    roads = []
-    for u, v, data in added:
-        a, b = node_of.get(u, u), node_of.get(v, v)
-        coords = data["coords"] if data["start"] == u else data["coords"][::-1]
-        if G.has_edge(a, b):  # both processes joined these two nodes: a shape node between
-            k = len(coords) // 2
-            m = index.new_node_id()
-            G.add_node(m, xy=(float(coords[k][0]), float(coords[k][1])))
-            pairs = [(a, m, coords[:k + 1]), (m, b, coords[k:])]
-        else:
-            pairs = [(a, b, coords)]
-        for p, q, part in pairs:
-            add_road(G, p, q, part, data["road_class"])
-            roads.append((p, q))
-    index.add_many(roads)
 
 
 def counted_change(G: nx.Graph, end, stub: float) -> int:
@@ -263,9 +121,9 @@ def _split_face(face: Polygon, chord: np.ndarray, ends: tuple, index: EdgeIndex)
     3.15: polygonize the boundary noded with the chord); one that ends on a dead-end road
     inside the face (which its rings leave out) closes a block only together with that road,
     so such faces are re-polygonised from their rings and the roads inside them that the
-    chord is joined to (the chord among them). The other roads inside are dangles to
-    polygonize: a block of a learned 10 km map held 1,300 of them, and noding them all took
-    four fifths of its 45 ms split."""
+    chord is joined to (the chord among them). The other roads inside are left out: a block
+    of a learned 10 km map can hold a thousand dangles, and noding them all would dominate
+    its split."""
     shapely.prepare(face)  # for the containment tests
     parts = _blocks(face, face.boundary.union(_extended(chord, 1.0)))
     if len(parts) > 1:
@@ -612,35 +470,8 @@ def _trace_in_face(face: Polygon, start, d, field: TensorField,
 
 
 def _substring(line: LineString, start: float, end: float) -> np.ndarray:
-    """The coordinates of ``shapely.ops.substring(line, start, end)`` for ``0 <= start <=
-    end``: the same steps and float operations, without its generic checks and per-vertex
-    shapely objects (which cost more than the rest of a fill road's tracing)."""
-    if not 0 <= start <= end:
-        return np.asarray(shapely.ops.substring(line, start, end).coords)
-    length = line.length
-    if start == end or start >= length:  # a point
-        return shapely.get_coordinates(line.interpolate(start if start == end else length))
-    return _pieces(line, [start, end])[0]
-
-
-def _pieces(line: LineString, cuts: list) -> list[np.ndarray]:
-    """:func:`_substring` between each two consecutive of the rising distances ``cuts`` (the
-    first below the line's length) in one walk along the line: shapely's vertex walk adds up
-    the same segment lengths in the same order for every piece."""
-    ends = shapely.get_coordinates(shapely.line_interpolate_point(line, cuts))
-    inner = [[] for _ in cuts[1:]]
-    coords = shapely.get_coordinates(line).tolist()
-    current = 0
-    k = 0  # the piece whose distances current has not yet passed
-    for p1, p2 in itertools.pairwise(coords):
-        if current >= cuts[-1]:
-            break
-        while current >= cuts[k + 1]:
-            k += 1
-        if cuts[k] < current:
-            inner[k].append(p1)
-        current += ((p2[0] - p1[0]) ** 2 + (p2[1] - p1[1]) ** 2) ** 0.5
-    return [np.array([ends[k], *inner[k], ends[k + 1]]) for k in range(len(inner))]
+    """The coordinates of ``line`` from ``start`` to ``end`` metres along it."""
+    return shapely.get_coordinates(shapely.ops.substring(line, start, end))
 
 
 def _ends_ok(face: Polygon, nodes: _NodePoints, chord, min_edge: float, min_angle: float,
@@ -717,11 +548,9 @@ def split_edge_at(G: nx.Graph, edge, point, tolerance: float, index: EdgeIndex):
     if line.length - s < tolerance:
         return v
     cls = G.edges[u, v]["road_class"]
-    first, second = _pieces(line, [0, s, line.length])  # both substrings, one walk
+    first, second = _substring(line, 0.0, s), _substring(line, s, line.length)
     node = index.new_node_id()
     G.add_node(node, xy=tuple(second[0]))
-    road = index.origin.pop(edge_key(u, v), edge_key(u, v))
-    index.origin[edge_key(u, node)] = index.origin[edge_key(node, v)] = road
     index.remove(u, v)
     G.remove_edge(u, v)
     add_road(G, u, node, first, cls)
