@@ -11,15 +11,11 @@ the fill roads of a grid block then followed.
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from functools import partial
 
-import numba as nb
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-from .compiled import B1, F8_1D, F8_2D, compiled
 from .portable import portable
 
 
@@ -134,81 +130,11 @@ def structure_tensor(
     np.add.at(acc_c, (i, j), np.cos(4 * phi))
     np.add.at(acc_s, (i, j), np.sin(4 * phi))
     np.add.at(acc_w, (i, j), 1.0)
-    blur = partial(gaussian_blur, sigma=sigma / res, truncate=radius / sigma)
-    with ThreadPoolExecutor(2) as pool:  # the filter releases the GIL: two cores
-        sum_c, sum_s, sum_w = pool.map(blur, (acc_c, acc_s, acc_w))
+    sum_c, sum_s, sum_w = (gaussian_filter(acc, sigma / res, mode="constant",
+                                           truncate=radius / sigma)
+                           for acc in (acc_c, acc_s, acc_w))
     safe = np.where(sum_w > 1e-12, sum_w, 1.0)
     return from_cross(sum_c / safe, sum_s / safe, res), sum_w
-
-
-def gaussian_blur(a: np.ndarray, sigma: float, truncate: float = 4.0,
-                  mode: str = "constant") -> np.ndarray:
-    """``scipy.ndimage.gaussian_filter(a, sigma, mode=mode, truncate=truncate)`` for mode
-    "constant" (zeros beyond the edges) or "wrap" (periodic), bit for bit: scipy's kernel, and
-    each output summed as scipy's symmetric 1-D correlation sums it (centre first, then the
-    pairs of taps from the outermost in), rows then columns. Only the loops are turned round,
-    every output of a row advancing one tap at a time, so they run in vector registers rather
-    than one long dependent chain per output (a 10 km map's three 1000 x 1000 rasters: 0.2 s of
-    CPU in scipy)."""
-    radius = int(truncate * float(sigma) + 0.5)
-    x = np.arange(-radius, radius + 1)  # scipy.ndimage._filters._gaussian_kernel1d, order 0
-    phi = np.exp(-0.5 / (sigma * sigma) * x**2)
-    weights = (phi / phi.sum())[::-1]  # correlate1d takes the kernel reversed
-    if not np.array_equal(weights, weights[::-1]) or mode not in ("constant", "wrap"):
-        return gaussian_filter(a, sigma, mode=mode, truncate=truncate)
-    return _blur(np.ascontiguousarray(a, dtype=np.float64), np.ascontiguousarray(weights),
-                 mode == "wrap")
-
-
-@nb.njit(inline="always")
-def _add_taps(out, lo, hi, w):
-    """One pair of taps into a whole row of outputs: vectorised, no output waits on another."""
-    for j in range(len(out)):
-        out[j] += (lo[j] + hi[j]) * w
-
-
-@nb.njit(inline="always")
-def _extend(line, out, half, wrap):
-    """``line`` into the middle of ``out``, ``half`` values either side: zeros, or the line
-    repeated (wrap)."""
-    n = len(line)
-    for j in range(len(out)):
-        k = j - half
-        if 0 <= k < n:
-            out[j] = line[k]
-        else:
-            out[j] = line[k % n] if wrap else 0.0
-
-
-@compiled(F8_2D(F8_2D, F8_1D, B1), nogil=True)
-def _blur(a, weights, wrap):
-    """The symmetric ``weights`` correlated along axis 0, then along axis 1, zeros (or the
-    other edge's values: ``wrap``) beyond the edges: per output ``c * w[h] + (l_h + r_h) * w[0]
-    + (l_(h-1) + r_(h-1)) * w[1] + ...``, added in that order, as scipy's ``NI_Correlate1D``
-    adds."""
-    half = len(weights) // 2
-    ny, nx = a.shape
-    padded = np.zeros((ny + 2 * half, nx))
-    for i in range(ny + 2 * half):
-        k = i - half
-        if 0 <= k < ny:
-            padded[i] = a[k]
-        elif wrap:
-            padded[i] = a[k % ny]
-    mid = np.empty((ny, nx))
-    for i in range(ny):
-        mid[i] = padded[i + half] * weights[half]
-        for k in range(half, 0, -1):
-            _add_taps(mid[i], padded[i + half - k], padded[i + half + k], weights[half - k])
-    row = np.zeros(nx + 2 * half)
-    out = np.empty((ny, nx))
-    for i in range(ny):
-        _extend(mid[i], row, half, wrap)
-        out[i] = row[half:half + nx] * weights[half]
-        for k in range(half, 0, -1):
-            _add_taps(out[i], row[half - k:half - k + nx], row[half + k:half + k + nx],
-                      weights[half - k])
-    return out
 
 
 def blend(primary: TensorField, weight: np.ndarray, fallback: TensorField) -> TensorField:

@@ -169,47 +169,6 @@ def test_components_joined_by_pending_links_get_no_second_link():
     assert len(link_components(G, cost, 10.0, radius=200.0)) == 1
 
 
-@pytest.mark.parametrize("levels", [None, 3, 1])
-def test_compiled_search_takes_skimages_path_even_among_equal_costs(levels):
-    """The dead-end search replicates MCP_Geometric step for step: its costs, neighbour order
-    and heap order among equal costs (few cost levels, or one, make ties everywhere)."""
-    from skimage.graph import MCP_Geometric
-
-    from roadweaver_sumo.expand.reconnect import _geometric_path
-
-    rng = np.random.default_rng(7)
-    for _ in range(300):
-        shape = tuple(rng.integers(1, 40, 2))
-        cost = rng.uniform(1.0, 5.0, shape)
-        if levels is not None:
-            cost = np.round(cost * levels / 5.0) + 1.0
-        targets = rng.random(shape) < rng.choice([0.002, 0.02, 0.2])
-        start = tuple(int(rng.integers(0, n)) for n in shape)
-        expected = np.zeros((0, 2), dtype=np.int64)
-        if targets.any():
-            mcp = MCP_Geometric(cost)
-            costs, _ = mcp.find_costs([start], np.argwhere(targets), find_all_ends=False)
-            reached = np.where(targets, costs, np.inf)
-            if np.isfinite(reached).any():
-                end = np.unravel_index(int(np.argmin(reached)), shape)
-                expected = np.array(mcp.traceback(end))
-        assert np.array_equal(_geometric_path(cost, targets, *start), expected)
-
-
-def test_compiled_gaussian_equals_scipys_bit_for_bit():
-    from scipy.ndimage import gaussian_filter
-
-    from roadweaver_sumo.tensor_field import gaussian_blur
-
-    rng = np.random.default_rng(8)
-    cases = [((60, 45), 15.0, 3.0), ((1, 80), 2.5, 4.0), ((33, 1), 0.7, 2.0), ((20, 30), 25.0, 4.0)]
-    for mode in ("constant", "wrap"):  # wrap also where the kernel is longer than the raster
-        for shape, sigma, truncate in cases:
-            a = rng.normal(size=shape) * (rng.random(shape) < 0.3)
-            expected = gaussian_filter(a, sigma, mode=mode, truncate=truncate)
-            assert gaussian_blur(a, sigma, truncate, mode).tobytes() == expected.tobytes()
-
-
 def test_compiled_samples_equal_numpys_line_by_line():
     from roadweaver_sumo.expand.growth import tangent_samples
     from roadweaver_sumo.raster import polyline_cells_each, sample_polyline

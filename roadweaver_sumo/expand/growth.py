@@ -7,12 +7,8 @@ support, the skeleton generator's basis field takes over.
 
 from __future__ import annotations
 
-import math
-
-import numba as nb
 import numpy as np
 
-from ..compiled import F8, F8_2D, I8_1D, compiled
 from ..skeleton import Skeleton
 from ..skeleton.procedural import block_size, growth_params
 from ..spec import ScenarioSpec
@@ -42,54 +38,29 @@ def tangent_samples(lines: list[np.ndarray], spacing: float) -> tuple[np.ndarray
 
 def _samples_each(lines: list[np.ndarray], spacing: float):
     """:func:`tangent_samples` of all lines stacked, and where each line's samples start."""
-    if not lines:
-        return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(1, dtype=np.int64)
-    lines = [np.asarray(line, dtype=float).reshape(-1, 2) for line in lines]
-    offsets = np.r_[0, np.cumsum([len(line) for line in lines])]
-    return _tangent_steps(np.ascontiguousarray(np.concatenate(lines)), offsets, float(spacing))
+    samples = [_line_samples(np.asarray(line, dtype=float).reshape(-1, 2), spacing)
+               for line in lines]
+    cuts = np.r_[0, np.cumsum([len(points) for points, _ in samples])].astype(np.int64)
+    if not samples:
+        return np.zeros((0, 2)), np.zeros((0, 2)), cuts
+    return (np.concatenate([p for p, _ in samples]), np.concatenate([t for _, t in samples]),
+            cuts)
 
 
-@compiled(nb.types.Tuple((F8_2D, F8_2D, I8_1D))(F8_2D, I8_1D, F8))
-def _tangent_steps(points, offsets, spacing):
-    """The samples of each line ``points[offsets[k]:offsets[k + 1]]``: marks ``i * spacing``
-    along its steps longer than 1e-9 m (numpy's ``arange``), each on the step it falls in
-    (``searchsorted``), its distance summed in order (``cumsum``); numpy's operations in
-    numpy's order, so the same bits as measuring line by line with numpy."""
-    n = len(offsets) - 1
-    size = len(points)
-    step_x, step_y, length = np.empty(size), np.empty(size), np.empty(size)
-    from_x, from_y, upto = np.empty(size), np.empty(size), np.empty(size)
-    first = np.zeros(n + 1, dtype=np.int64)  # each line's first kept step
-    cuts = np.zeros(n + 1, dtype=np.int64)
-    for k in range(n):
-        q, total = first[k], 0.0
-        for m in range(offsets[k], offsets[k + 1] - 1):
-            dx, dy = points[m + 1, 0] - points[m, 0], points[m + 1, 1] - points[m, 1]
-            h = math.hypot(dx, dy)
-            if h > 1e-9:
-                step_x[q], step_y[q], length[q] = dx, dy, h
-                from_x[q], from_y[q] = points[m, 0], points[m, 1]
-                total += h
-                upto[q] = total
-                q += 1
-        first[k + 1] = q
-        cuts[k + 1] = cuts[k] + max(math.ceil(total / spacing), 0)
-    pts, tans = np.empty((cuts[n], 2)), np.empty((cuts[n], 2))
-    for k in range(n):
-        q0, steps = first[k], first[k + 1] - first[k]
-        idx = 0
-        for i in range(cuts[k + 1] - cuts[k]):
-            mark = i * spacing
-            while idx + 1 <= steps and upto[q0 + idx] <= mark:
-                idx += 1
-            q = q0 + min(idx, steps - 1)
-            before = upto[q - 1] if q > q0 else 0.0
-            frac = (mark - before) / length[q]
-            pts[cuts[k] + i, 0] = from_x[q] + frac * step_x[q]
-            pts[cuts[k] + i, 1] = from_y[q] + frac * step_y[q]
-            tans[cuts[k] + i, 0] = step_x[q] / length[q]
-            tans[cuts[k] + i, 1] = step_y[q] / length[q]
-    return pts, tans, cuts
+def _line_samples(line: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points every ``spacing`` metres along one line, from its start, and the unit tangent of
+    the step each lies on."""
+    steps = np.diff(line, axis=0)
+    length = np.hypot(steps[:, 0], steps[:, 1])
+    keep = length > 1e-9
+    starts, steps, length = line[:-1][keep], steps[keep], length[keep]
+    if not len(length):
+        return np.zeros((0, 2)), np.zeros((0, 2))
+    upto = np.cumsum(length)
+    marks = np.arange(0.0, upto[-1], spacing)
+    on = np.minimum(np.searchsorted(upto, marks, side="right"), len(length) - 1)
+    along = (marks - np.r_[0.0, upto][on]) / length[on]
+    return starts[on] + along[:, None] * steps[on], steps[on] / length[on, None]
 
 
 def grow_collectors(

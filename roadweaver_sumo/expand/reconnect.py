@@ -3,25 +3,21 @@
 Each dead end that is not at the map border searches, within a window around it, the cheapest
 path to any other road; cells the skeleton's road field marks as likely road are cheap, so the
 new link follows the layout the skeleton suggests. The graph search is scikit-image's
-minimum-cost-path search (``MCP_Geometric``), replicated compiled step for step
-(:func:`_geometric_path`): its set-up alone cost more than a search in the small window of one
-dead end. The searches do not depend on each other: a forked child runs every other one (a
-learned 10 km map has about 2,200 dead ends, 0.4 s of linking).
+minimum-cost-path search (``MCP_Geometric``) in a window around the dead end.
 """
 
 from __future__ import annotations
-
-import math
 
 import networkx as nx
 import numpy as np
 import shapely
 from shapely.ops import nearest_points
+from skimage.graph import MCP_Geometric
 
-from ..compiled import B1_2D, F8_2D, I8, I8_2D, compiled
 from ..raster import polyline_cells_each, rasterise_polylines, rasterise_window
 from ..roadgraph import sorted_edge_list
-from .planar import components_main_first, road_lines
+from .cleanup import components_main_first
+from .planar import road_lines
 
 
 def dangling_ends(G: nx.Graph, margin: float) -> list[int]:
@@ -155,8 +151,7 @@ def _cheapest_link(p, cost, targets, res, radius, exclude=None):
     if not window_targets.any():
         return None
     start = (min(max(ci - i0, 0), i1 - i0 - 1), min(max(cj - j0, 0), j1 - j0 - 1))
-    cells = _geometric_path(np.ascontiguousarray(cost[i0:i1, j0:j1], dtype=np.float64),
-                            np.ascontiguousarray(window_targets), *start)
+    cells = _cheapest_cells(cost[i0:i1, j0:j1], window_targets, start)
     if len(cells) < 2:
         return None  # the start cell is a target: no path to trace
     xy = (cells[:, ::-1] + [j0, i0] + 0.5) * res
@@ -168,77 +163,16 @@ def _cheapest_link(p, cost, targets, res, radius, exclude=None):
     return shapely.get_coordinates(line)
 
 
-#: skimage's fully connected neighbourhood, in its order (``make_offsets(2, True)``)
-_STEPS = np.array([(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)])
-
-
-@compiled(I8_2D(F8_2D, B1_2D, I8, I8))
-def _geometric_path(cost, targets, si, sj):
-    """The cells of the cheapest path from (si, sj) to the first target cell settled, start
-    first (no cells if none is reached), as ``skimage.graph.MCP_Geometric(cost)`` finds it
-    with ``find_costs([start], targets, find_all_ends=False)`` and ``traceback``: its step
-    cost ``length * 0.5 * (cost + next cost)``, its neighbour order, and its heap's choice
-    among equal costs (the one earliest in its slots; a settled cell's slot takes the last
-    one; a lower cost replaces a queued one in place), so the same path. Compiled, it costs a
-    tenth of skimage's set-up and search for the small window of one dead end."""
-    ny, nx_ = cost.shape
-    settled = np.full((ny, nx_), np.inf)
-    step_in = np.full((ny, nx_), -2, dtype=np.int64)  # -1: the start
-    slot_of = np.full(ny * nx_, -1, dtype=np.int64)
-    value = np.empty(ny * nx_)
-    ref = np.empty(ny * nx_, dtype=np.int64)
-    value[0], ref[0], slot_of[si + sj * ny], count = 0.0, si + sj * ny, 0, 1
-    step_in[si, sj] = -1
-    lengths = np.empty(8)
-    for s in range(8):
-        lengths[s] = math.sqrt(float(_STEPS[s, 0] * _STEPS[s, 0] + _STEPS[s, 1] * _STEPS[s, 1]))
-    end = -1
-    while count > 0:
-        best = 0
-        for k in range(1, count):
-            if value[k] < value[best]:
-                best = k
-        cumcost, flat = value[best], ref[best]
-        count -= 1  # the last slot fills the settled one
-        slot_of[ref[count]] = best
-        slot_of[flat] = -1
-        value[best], ref[best] = value[count], ref[count]
-        i, j = flat % ny, flat // ny
-        settled[i, j] = cumcost
-        if targets[i, j]:
-            end = flat
-            break
-        for s in range(8):
-            ni, nj = i + _STEPS[s, 0], j + _STEPS[s, 1]
-            if ni < 0 or ni >= ny or nj < 0 or nj >= nx_ or settled[ni, nj] != np.inf:
-                continue
-            new_cost = cost[ni, nj]
-            if new_cost < 0 or new_cost == np.inf:
-                continue
-            total = cumcost + lengths[s] * 0.5 * (cost[i, j] + new_cost)
-            if total == np.inf:
-                continue
-            nflat = ni + nj * ny
-            slot = slot_of[nflat]
-            if slot == -1:
-                value[count], ref[count], slot_of[nflat] = total, nflat, count
-                count += 1
-            elif value[slot] > total:
-                value[slot] = total
-            else:
-                continue
-            step_in[ni, nj] = s
-    if end == -1:
+def _cheapest_cells(cost: np.ndarray, targets: np.ndarray, start: tuple) -> np.ndarray:
+    """The cells (row, column) of the cheapest path from ``start`` to the first target cell
+    that scikit-image's minimum-cost-path search settles, start first; none if none is
+    reached."""
+    mcp = MCP_Geometric(cost)
+    costs, _ = mcp.find_costs([start], np.argwhere(targets), find_all_ends=False)
+    reached = np.where(targets, costs, np.inf)
+    if not np.isfinite(reached).any():
         return np.zeros((0, 2), dtype=np.int64)
-    path = [(end % ny, end // ny)]
-    while step_in[path[-1]] != -1:
-        i, j = path[-1]
-        s = step_in[i, j]
-        path.append((i - _STEPS[s, 0], j - _STEPS[s, 1]))
-    out = np.empty((len(path), 2), dtype=np.int64)
-    for k in range(len(path)):
-        out[k, 0], out[k, 1] = path[len(path) - 1 - k]
-    return out
+    return np.array(mcp.traceback(np.unravel_index(int(np.argmin(reached)), cost.shape)))
 
 
 def _snap_end(path: np.ndarray, lines: list, tree, skip: set) -> np.ndarray | None:

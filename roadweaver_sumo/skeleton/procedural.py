@@ -13,10 +13,11 @@ import math
 from collections import deque
 
 import numpy as np
+from scipy.ndimage import gaussian_filter
 
 from ..spec import STAGE_SKELETON, ScenarioSpec
 from ..streamlines import GrowthParams, SegmentIndex, point_segment_distance, trace
-from ..tensor_field import TensorField, field_grid, gaussian_blur
+from ..tensor_field import TensorField, field_grid
 from .model import Skeleton, perimeter, road_field_from_polylines
 
 FIELD_RES = 10.0  # metres per tensor-field cell
@@ -77,7 +78,7 @@ def basis_field(spec: ScenarioSpec, rng: np.random.Generator) -> TensorField:
     theta = 0.5 * np.arctan2(s2, c2)
     noise_deg = STYLE_PARAMS[spec.style][3]
     if noise_deg > 0:
-        noise = gaussian_blur(rng.normal(size=X.shape), 250.0 / FIELD_RES, mode="wrap")
+        noise = gaussian_filter(rng.normal(size=X.shape), 250.0 / FIELD_RES, mode="wrap")
         noise /= max(np.abs(noise).max(), 1e-9)
         theta = theta + math.radians(noise_deg) * noise
     return TensorField(np.cos(2 * theta), np.sin(2 * theta), FIELD_RES)
