@@ -9,7 +9,8 @@ import shapely
 from shapely.geometry import LineString
 
 from roadweaver_sumo.expand import MIN_ANGLE, MIN_EDGE, expand_skeleton
-from roadweaver_sumo.expand.planar import build_planar_graph, departure_angles, point_along
+from roadweaver_sumo.expand.cleanup import departure_angles, point_along
+from roadweaver_sumo.expand.planar import build_planar_graph
 from roadweaver_sumo.gc_pause import cyclic_gc_paused
 from roadweaver_sumo.metrics import graph_metrics, road_node_count
 from roadweaver_sumo.roadgraph import edge_length
@@ -41,46 +42,6 @@ def test_clean_up_leaves_no_short_roads_or_sharp_junctions():
             angles = [a for a, _ in departure_angles(G, n)]
             gaps = np.diff(angles + [angles[0] + 2 * math.pi])
             assert gaps.min() >= math.radians(MIN_ANGLE) - 1e-6
-
-
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_clean_up_of_the_changed_nodes_leaves_what_a_whole_clean_up_leaves(seed):
-    """``clean(changed=...)`` looks for short roads and sharp angles only at the nodes whose
-    roads changed since the graph was cleaned. Roads removed from a cleaned graph (as
-    ``open_tiny_blocks`` removes them) and others added between its junctions must come out
-    as cleaning the whole graph again leaves them: the same roads, polylines and classes."""
-    from roadweaver_sumo.expand import BORDER_MARGIN
-    from roadweaver_sumo.expand.planar import clean
-    from roadweaver_sumo.roadgraph import add_road
-
-    rng = np.random.default_rng(seed)
-    frame = np.array([[15, 15], [985, 15], [985, 985], [15, 985], [15, 15]], float)
-    roads = [(frame, "collector")] + [(rng.uniform(0, 1000, (2, 2)), "local") for _ in range(40)]
-    G = build_planar_graph(roads, 1000, 1000)
-    settings = {"min_edge": MIN_EDGE, "min_angle": MIN_ANGLE, "stub": 40.0,
-                "margin": BORDER_MARGIN}
-    clean(G, **settings)
-    changed = set()
-    edges = sorted(G.edges)
-    for k in rng.choice(len(edges), 6, replace=False):
-        G.remove_edge(*edges[k])
-        changed.update(edges[k])
-    nodes = sorted(G.nodes)
-    for a, b in rng.choice(nodes, (3, 2), replace=False):
-        if not G.has_edge(a, b):
-            add_road(G, a, b, np.array([G.nodes[a]["xy"], G.nodes[b]["xy"]]), "local")
-            changed.update((a, b))
-    whole = G.copy()
-    before = sorted(G.edges)
-    clean(G, **settings, changed=changed)
-    clean(whole, **settings)
-
-    def roads_of(H):
-        return sorted((u, v, H.edges[u, v]["road_class"], H.edges[u, v]["coords"].tobytes())
-                      for u, v in H.edges)
-
-    assert sorted(G.edges) != before  # the clean-up had something to do
-    assert roads_of(G) == roads_of(whole)
 
 
 def _sharpest_turn_deg(coords: np.ndarray, reach: float = 5.0) -> float:
@@ -122,7 +83,7 @@ def test_clean_up_never_joins_a_sharp_v_into_a_hairpin(other_arm):
     lanes crossed, and a 20 km learned map had 35 collisions at one). The clean-up drops the V's
     minor road instead, as it does for a sharp pair at a junction, for any V sharper than 60°,
     measured 5 and 20 m out."""
-    from roadweaver_sumo.expand.planar import clean
+    from roadweaver_sumo.expand.cleanup import clean
     from roadweaver_sumo.skeleton.model import perimeter
 
     ring = perimeter(1000, 1000)
@@ -136,27 +97,14 @@ def test_clean_up_never_joins_a_sharp_v_into_a_hairpin(other_arm):
     assert len(tip) == 1 and G.degree(tip[0]) == 1  # one arm of the V is left, a cul-de-sac
 
 
-def test_noding_joins_a_road_that_stops_a_hair_off_another_as_snap_rounding_does():
-    """The graph is noded by plain noding of the lines rounded to the 1 cm grid, not by
-    snap-rounding (a fifth of the time). A road whose end was put on another road's nearest
-    point (a reconnection link) is rarely exactly on it, and rounded to the grid it is off by
-    a few millimetres: it must still meet that road in a T-junction, as GEOS's snap-rounding
-    (``union_all(grid_size=0.01)``) makes it. One that stops within a grid step of another
-    road's vertex joins it there (snap-rounding keeps ends a grid step apart)."""
-    from roadweaver_sumo.expand import planar
-
+def test_noding_joins_a_road_that_stops_a_hair_off_another():
+    """A road whose end was put on another road's nearest point (a reconnection link) is
+    rarely exactly on it: it must still meet that road in a T-junction, and one that stops
+    within half a grid step of another road's vertex joins it there (snap-rounding to 1 cm)."""
     diagonal = np.array([[0.0, 0.0], [300.0, 100.01], [300.0, 400.0]])  # y 33.3367 at x 100
     onto_segment = np.array([[100.0, 250.0], [100.0, 33.33667]])  # 33.34 on the grid
-    onto_vertex = np.array([[500.0, 100.004], [300.006, 100.014]])  # 300.01, 100.01
+    onto_vertex = np.array([[500.0, 100.004], [300.003, 100.012]])  # 300.0, 100.01
     roads = [(diagonal, "collector"), (onto_segment, "local"), (onto_vertex, "local")]
-    lines = planar._linestrings([c for c, _ in roads])
-    rounded = shapely.linestrings(np.round(shapely.get_coordinates(lines), 2),
-                                  indices=shapely.get_coordinates(lines, return_index=True)[1])
-    assert 0 < shapely.distance(shapely.points([100.0, 33.34]), lines[0]) < 0.005
-    assert planar._loose_end(shapely.union_all(rounded))  # plain noding alone misses both
-    assert not planar._loose_end(shapely.union_all(planar._ends_onto_roads(rounded)))
-    snapped = shapely.get_parts(shapely.union_all(lines[:2], grid_size=planar.GRID))
-    assert len(snapped) == len(shapely.get_parts(planar._noded(lines[:2]))) == 3
     G = build_planar_graph(roads, 1000, 1000)
     assert G.number_of_edges() == 5  # the diagonal cut at the T and at its vertex
     tees = sorted(tuple(G.nodes[n]["xy"]) for n in G if G.degree(n) == 3)
@@ -165,7 +113,7 @@ def test_noding_joins_a_road_that_stops_a_hair_off_another_as_snap_rounding_does
 
 def test_clean_up_joins_a_wide_bend_into_one_road():
     """The hairpin rule leaves ordinary bends alone: arms meeting at 100° become one road."""
-    from roadweaver_sumo.expand.planar import clean
+    from roadweaver_sumo.expand.cleanup import clean
     from roadweaver_sumo.skeleton.model import perimeter
 
     streets = [np.array([[15.0, 460.0], [200.0, 460.0]]), np.array([[985.0, 500.0], [800.0, 500.0]])]
@@ -219,7 +167,7 @@ def test_sharp_bends_left_by_the_clean_up_are_cut_across(road):
     """Whatever made it (see the cases), a road that doubles back within 12 m is cut across
     where its arms are 14 m apart: rounded, it turns no sharper than 120° within 12 m, and it
     still joins the same two junctions."""
-    from roadweaver_sumo.expand.planar import cut_sharp_bends
+    from roadweaver_sumo.expand.bends import cut_sharp_bends
     from roadweaver_sumo.metrics import sharp_bends
     from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
@@ -273,7 +221,7 @@ def _net_shape(coords: np.ndarray, tmp_path) -> np.ndarray:
 def test_a_bend_sharp_only_in_the_net_is_cut_too(tmp_path):
     """Our road passes the sharp-bend check, netconvert's copy of it (points within 0.1 m
     dropped) fails it: ``net_shapes`` gives netconvert's shape, and the road is cut."""
-    from roadweaver_sumo.expand.planar import cut_sharp_bends, net_shapes
+    from roadweaver_sumo.expand.bends import cut_sharp_bends, net_shapes
     from roadweaver_sumo.metrics import sharp_bends
     from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
@@ -298,7 +246,7 @@ def test_a_bend_sharp_only_in_the_net_is_cut_too(tmp_path):
 
 
 def test_a_sharp_bend_is_not_cut_across_another_road():
-    from roadweaver_sumo.expand.planar import cut_sharp_bends
+    from roadweaver_sumo.expand.bends import cut_sharp_bends
     from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
     road = _arm((0.0, 0.0), [(0.0, 60.0), (133.0, 60.0)])
@@ -331,7 +279,7 @@ def test_a_jog_or_a_corner_by_a_curve_is_rounded_wide_enough_for_its_lanes(road)
     vertex too close to a sharp corner goes: each fillet then has the room for the class's
     least radius (paper §III-D), where alone it got 1-4 m and lanes offset from the
     centreline folded (CommonRoad's self-intersecting lanelets)."""
-    from roadweaver_sumo.expand.planar import smooth_bends
+    from roadweaver_sumo.expand.bends import smooth_bends
     from roadweaver_sumo.hdmap.lanes import LANE_CONFIGS
     from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
@@ -346,8 +294,8 @@ def test_a_jog_or_a_corner_by_a_curve_is_rounded_wide_enough_for_its_lanes(road)
 def test_a_jog_stays_where_one_corner_would_crowd_another_road():
     """Merging a jog's corners moves the road by up to half their leg: where that brings it
     within another road's clearance, its corners are only rounded."""
+    from roadweaver_sumo.expand.bends import round_corners, smooth_bends
     from roadweaver_sumo.expand.clearance import roads_too_close
-    from roadweaver_sumo.expand.planar import round_corners, smooth_bends
     from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
     jog = np.array([[0.0, 0.0], [100.0, 0.0], [103.0, 5.2], [200.0, 5.2]])
@@ -364,7 +312,7 @@ def test_a_jog_stays_where_one_corner_would_crowd_another_road():
 def _merged_road(drop_road):
     """Junction 0 at the origin (roads west and north) absorbs node 1 at (6, 5), whose road
     ``drop_road`` runs to node 2; the road 0-2 that the merge leaves."""
-    from roadweaver_sumo.expand.planar import merge_nodes
+    from roadweaver_sumo.expand.cleanup import merge_nodes
     from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
     G = new_road_graph(1000, 1000)
@@ -400,7 +348,7 @@ def test_merging_a_ring_node_keeps_the_ring_on_the_border():
     """A busy junction 11 m inside the map, joined to the perimeter ring by a short road: the
     merged junction stays on the ring. Kept where the busy one was, it bent the ring's roads
     inward across the roads there, and a 10 km map's blocks along the ring stopped closing."""
-    from roadweaver_sumo.expand.planar import contract_short_edges, on_perimeter
+    from roadweaver_sumo.expand.cleanup import contract_short_edges, on_perimeter
     from roadweaver_sumo.skeleton.model import perimeter
 
     inner = [974.0, 500.0]
@@ -485,7 +433,7 @@ def test_rectangular_maps_fill_their_whole_extent():
 
 
 def test_roads_have_no_sharp_bends():
-    from roadweaver_sumo.expand.planar import turn_angles
+    from roadweaver_sumo.expand.bends import turn_angles
 
     _, G = generate(density=30, width=1500, height=1500, style="radial", seed=2)
     worst = max(turn_angles(G.edges[e]["coords"]).max(initial=0.0) for e in G.edges)
@@ -508,8 +456,8 @@ def test_clean_up_never_cuts_the_perimeter_ring():
     """An arterial fragment meeting the perimeter ring at a shallow angle loses to the ring:
     cutting the ring would leave border dead ends whose pruning unravels it, and with it the
     one block the density fill could split (a fragmentary learned skeleton did exactly that)."""
+    from roadweaver_sumo.expand.cleanup import clean
     from roadweaver_sumo.expand.fill import faces
-    from roadweaver_sumo.expand.planar import clean
     from roadweaver_sumo.skeleton.model import perimeter
 
     ring = perimeter(1000, 1000)
@@ -564,9 +512,9 @@ def test_fill_counts_road_nodes_as_the_clean_up_leaves_them():
     and the chord's junction with it: the fill counts that end as one road node fewer (the
     dead end), not one more (the junction), and ``stub_loss`` predicts the clean-up's count for the whole
     graph. A chord farther from the end counts as the junction it stays."""
+    from roadweaver_sumo.expand.cleanup import clean
     from roadweaver_sumo.expand.edge_index import EdgeIndex
     from roadweaver_sumo.expand.fill import counted_change, insert_chord, stub_loss
-    from roadweaver_sumo.expand.planar import clean
 
     ring = np.array([[0, 0], [800, 0], [800, 400], [0, 400], [0, 0]], float)
     dead_end = np.array([[0, 150], [600, 150]], float)  # its end at x = 600
@@ -647,7 +595,7 @@ def test_junctions_closer_than_the_junction_gap_become_one():
     """Two junctions 15 m apart (each with two more roads) merge into one: SUMO would leave
     a road of a few centimetres between their junction areas, where traffic locks up. A dead
     end 15 m long stays: it joins no second junction."""
-    from roadweaver_sumo.expand.planar import MIN_JUNCTION_GAP, contract_short_edges
+    from roadweaver_sumo.expand.cleanup import MIN_JUNCTION_GAP, contract_short_edges
     from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
     G = new_road_graph(1000.0, 1000.0)
@@ -747,7 +695,7 @@ def test_a_loop_fragment_without_dead_ends_is_linked_too():
 def test_component_filter_keeps_the_ring_over_a_bigger_cluster():
     """Blocks close against the perimeter ring: the filter keeps the ring's component even
     when a cluster of reconnected fragments has more junctions."""
-    from roadweaver_sumo.expand.planar import _ring_nodes, keep_largest_component, on_perimeter
+    from roadweaver_sumo.expand.cleanup import _ring_nodes, keep_largest_component, on_perimeter
     from roadweaver_sumo.skeleton.model import perimeter
 
     cluster = [np.array([[400.0 + 50 * k, 300.0], [400.0 + 50 * k, 600.0]]) for k in range(4)]
@@ -841,7 +789,7 @@ def test_a_learned_map_whose_clean_up_left_a_sharp_bend_has_none():
 def test_a_block_smaller_than_a_junction_loses_its_least_road():
     """A 146 m² triangle beside a larger block (the learned organic map of the test below):
     its local road goes, the collector sides stay; the larger block is left alone."""
-    from roadweaver_sumo.expand.planar import open_tiny_blocks
+    from roadweaver_sumo.expand.cleanup import open_tiny_blocks
     from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
     G = new_road_graph(1000, 1000)
@@ -863,8 +811,8 @@ def test_no_learned_map_keeps_a_block_smaller_than_a_junction(tmp_path):
     import json
 
     from roadweaver_sumo.cli import main
+    from roadweaver_sumo.expand.cleanup import MIN_BLOCK_AREA
     from roadweaver_sumo.expand.fill import faces
-    from roadweaver_sumo.expand.planar import MIN_BLOCK_AREA
 
     spec = ScenarioSpec(density=10, vehicles=500, seed=0, style="organic", skeleton="learned")
     G = expand_skeleton(spec, make_skeleton(spec))
@@ -874,29 +822,3 @@ def test_no_learned_map_keeps_a_block_smaller_than_a_junction(tmp_path):
                  "--style", "organic", "--out", str(out)]) == 0
     simulation = json.loads((out / "report.json").read_text())["simulation"]
     assert (simulation["collisions"], simulation["teleports_total"]) == (0, 0)
-
-
-def test_best_rank_near_agrees_with_shapely_dwithin():
-    """The compiled class lookup finds exactly the segments GEOS's ``dwithin`` finds, also for
-    points about 5 cm off a segment, degenerate segments and map-long ones."""
-    from roadweaver_sumo.expand.planar import _best_rank_near
-
-    rng = np.random.default_rng(3)
-    starts = rng.uniform(0, 300, (400, 2))
-    ends = starts + rng.normal(0, 20, (400, 2))
-    ends[:5] = starts[:5]  # zero-length segments
-    ends[5:8] = starts[5:8] + [[290.0, 3.0], [-250.0, 200.0], [0.0, 280.0]]
-    rank = rng.integers(1, 4, 400)
-    t = rng.uniform(-0.1, 1.1, 3000)
-    k = rng.integers(0, 400, 3000)
-    along = ends[k] - starts[k]
-    normal = np.c_[-along[:, 1], along[:, 0]] / np.maximum(np.hypot(*along.T), 1e-9)[:, None]
-    points = starts[k] + t[:, None] * along + rng.uniform(0.045, 0.055, 3000)[:, None] * normal
-    best = _best_rank_near(points, starts, ends, rank, 0.05)
-    segments = shapely.linestrings(np.stack([starts, ends], axis=1))
-    which, near = shapely.STRtree(segments).query(shapely.points(points), predicate="dwithin",
-                                                  distance=0.05)
-    expected = np.zeros(len(points), dtype=int)
-    np.maximum.at(expected, which, rank[near])
-    assert 0 < (expected > 0).sum() < len(points)
-    assert best.tolist() == expected.tolist()

@@ -12,9 +12,11 @@ from ..roadgraph import add_road, edge_coords, edge_list, sorted_edge_list
 from ..skeleton import Skeleton
 from ..skeleton.procedural import block_size
 from ..spec import STAGE_FILL, STAGE_GROWTH, ScenarioSpec
+from .bends import cut_sharp_bends
+from .cleanup import MIN_BLOCK_AREA, clean
 from .fill import fill_to_density, prune_to_density
 from .growth import grow_collectors, skeleton_tensor_field
-from .planar import MIN_BLOCK_AREA, build_planar_graph, clean, cut_sharp_bends
+from .planar import build_planar_graph
 from .reconnect import link_components, reconnect_dangles
 
 MIN_EDGE = 12.0  # metres: shorter roads are merged into a junction
@@ -48,9 +50,8 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
         fill_to_density(G, target, field, rng, MIN_EDGE, MIN_ANGLE, stub=stub)
         prune_to_density(G, target, stub)
         # The fill keeps the graph planar, but the clean-up before it may not have: merging
-        # junctions that no road joins moves roads, which can then cross a neighbour (3 of
-        # 100 learned 2 km maps of bench/quality_sweep.py kept such a crossing without a
-        # re-noding here). Checking is a tenth of re-noding (10 km: 0.012 against 0.17 s).
+        # junctions that no road joins moves roads, which can then cross a neighbour. Such
+        # a graph is noded again.
         if not _roads_meet_only_at_ends(G):
             G = _renode(G, [])
         clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN,
