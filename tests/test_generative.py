@@ -8,7 +8,6 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-import numba
 import numpy as np
 import pytest
 import torch
@@ -34,7 +33,6 @@ from roadweaver_sumo.generative.sampling import (
     decode_canvas,
     sample_field,
     sample_tokens,
-    two_threads,
     window_starts,
     window_steps,
 )
@@ -229,51 +227,6 @@ def test_trunk_rows_are_those_of_the_full_trunk():
                                    rtol=1e-4, atol=1e-5)
 
 
-@pytest.mark.skipif(not SHIPPED_VQVAE.is_file(), reason="weights not trained yet")
-def test_decoding_on_two_threads_gives_the_fields_of_one(monkeypatch):
-    """decode_canvas, whose convolutions split their products over two threads (halves of the
-    rows, output phases), decodes what the decoder computes with every product whole on
-    BLAS's own threads, to float32 rounding (the kernels of some CPUs sum the halves of a
-    product otherwise): canvases of one token row up to larger than a window."""
-    gen = Generator.load()
-    G, K = gen.decoder.codes.shape[:2]
-    canvases = [np.random.default_rng(1).integers(0, K, (*shape, G))
-                for shape in ((1, 3), (2, 2), (5, 7), (24, 19))]
-    fields = [decode_canvas(gen.decoder, tokens) for tokens in canvases]
-    monkeypatch.setattr(inference, "_halves", lambda n: [(0, n)])
-    for tokens, field in zip(canvases, fields, strict=True):
-        np.testing.assert_allclose(field, gen.decoder.decode(tokens), rtol=1e-4, atol=1e-5)
-
-
-def _group_norm_silu_group_by_group(x, weight, bias, groups):
-    """The decoder's GroupNorm + SiLU as first written: each group's statistics in passes of
-    their own (the reference for the merged passes)."""
-    H, W, C = x.shape
-    out = np.zeros((H + 3, W + 2, C), np.float32)
-    size, count = C // groups, H * W * (C // groups)
-    for g in range(groups):
-        total = 0.0
-        for i in range(H):
-            for j in range(W):
-                for c in range(g * size, (g + 1) * size):
-                    total += x[i, j, c]
-        mean = np.float32(total / count)
-        sq = 0.0
-        for i in range(H):
-            for j in range(W):
-                for c in range(g * size, (g + 1) * size):
-                    diff = x[i, j, c] - mean
-                    sq += diff * diff
-        inv = np.float32(1.0 / np.sqrt(sq / count + 1e-5))
-        for c in range(g * size, (g + 1) * size):
-            scale, shift = inv * weight[c], bias[c] - mean * inv * weight[c]
-            for i in range(H):
-                for j in range(W):
-                    v = x[i, j, c] * scale + shift
-                    out[i + 1, j + 1, c] = v / (np.float32(1.0) + np.float32(math.exp(-v)))
-    return out
-
-
 def test_inverse_cdf_draws_are_numpys_cumulative_sum_compare_and_count():
     """The compiled draw picks the category numpy's float64 cumulative sum, cast to float32,
     compared with u times the total and counted picks: also for uniform numbers at 0 and just
@@ -292,19 +245,6 @@ def test_inverse_cdf_draws_are_numpys_cumulative_sum_compare_and_count():
     inference._inverse_cdf(probs, u, got)
     assert np.array_equal(got, want)
     assert (got[:20] == 0).all() and (got[20:50] == 7).all()  # u = 0 takes the first category
-
-
-def test_group_norm_statistics_of_all_groups_in_one_pass_are_those_group_by_group():
-    reference = numba.njit(_group_norm_silu_group_by_group)
-    rng = np.random.default_rng(2)
-    for shape, groups in (((9, 7, 32), 8), ((40, 33, 64), 8), ((5, 6, 16), 4)):
-        x = (rng.normal(size=shape) * 10.0 ** rng.uniform(-6, 6, shape)).astype(np.float32)
-        weight, bias = (rng.normal(size=(2, shape[2])) + [[1.0], [0.0]]).astype(np.float32)
-        want = reference(x, weight, bias, groups)
-        assert np.array_equal(inference._norm_silu_padded(x, weight, bias, groups), want)
-        with two_threads() as pool:  # half the groups and half the rows on each thread
-            assert np.array_equal(inference._norm_silu_padded(x, weight, bias, groups,
-                                                              pool.map), want)
 
 
 @pytest.mark.skipif(not SHIPPED_MASKGIT.is_file(), reason="weights not trained yet")
@@ -326,16 +266,15 @@ def test_out_of_order_sampling_gives_the_raster_order_tokens(monkeypatch, guidan
     done = np.zeros(shape, dtype=bool)
     modulations = gen.sampler.condition(gen.standardise(c), guidance)
     rng = TorchUniform(seed)
-    with two_threads() as pool:
-        for y in window_starts(shape[0], g):
-            for x in window_starts(shape[1], g):
-                known_mask = done[y:y + g, x:x + g].reshape(-1)
-                out = gen.sampler.sample(
-                    modulations, rng, steps=window_steps(1 - known_mask.mean()),
-                    known=canvas[y:y + g, x:x + g].reshape(-1, G), known_mask=known_mask,
-                    guidance=guidance, temperature=TEMPERATURE, map_rows=pool.map)
-                canvas[y:y + g, x:x + g] = out.reshape(g, g, G)
-                done[y:y + g, x:x + g] = True
+    for y in window_starts(shape[0], g):
+        for x in window_starts(shape[1], g):
+            known_mask = done[y:y + g, x:x + g].reshape(-1)
+            out = gen.sampler.sample(
+                modulations, rng, steps=window_steps(1 - known_mask.mean()),
+                known=canvas[y:y + g, x:x + g].reshape(-1, G), known_mask=known_mask,
+                guidance=guidance, temperature=TEMPERATURE)
+            canvas[y:y + g, x:x + g] = out.reshape(g, g, G)
+            done[y:y + g, x:x + g] = True
     assert np.array_equal(tokens, canvas)
 
 

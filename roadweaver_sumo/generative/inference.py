@@ -20,7 +20,7 @@ from functools import partial
 import numpy as np
 from scipy.special import expit
 
-from ..compiled import F4_1D, F4_2D, F4_3D, I8, I8_1D, compiled
+from ..compiled import F4_1D, F4_2D, I8_1D, compiled
 from .settings import MaskGITConfig, VQVAEConfig
 
 F32 = np.float32
@@ -232,21 +232,18 @@ class MaskGITSampler:
         return h @ weight + bias
 
     def sample(self, mods: list[tuple], rng: TorchUniform, *, steps: int, known: np.ndarray,
-               known_mask: np.ndarray, temperature: float, guidance: float,
-               map_rows=map) -> np.ndarray:
+               known_mask: np.ndarray, temperature: float, guidance: float) -> np.ndarray:
         """Iterative confidence-based decoding of one window (``MaskGIT.sample`` with batch 1):
         tokens (n, G), those under ``known_mask`` kept. At step t the share cos(π t / 2T) of
         the unknown positions stays masked; the sampled tokens with the highest log-probability
-        plus annealed Gumbel noise are kept. ``mods`` come from :meth:`condition`; the trunks
-        of its rows are independent, and ``map_rows`` (a thread pool's ``map``) may run them
-        side by side."""
+        plus annealed Gumbel noise are kept. ``mods`` come from :meth:`condition`."""
         n = self.cfg.grid ** 2
         tokens = np.where(known_mask[:, None], known, 0)
         masked = ~known_mask
         unknown = int(masked.sum())
         for t in range(steps):
             features = partial(self._masked_features, tokens, masked)
-            h_cond, *h_free = map_rows(features, mods)
+            h_cond, *h_free = map(features, mods)
             h_free = h_free[0] if h_free else None
             choice, logp = self._sample_masked(h_cond, h_free, rng, guidance, temperature)
             conf = np.zeros(n, F32)
@@ -340,22 +337,19 @@ class FieldDecoder:
             ("silu, conv", *_conv_taps(w, f"{net}.9")),
         ]
 
-    def decode(self, tokens: np.ndarray, map_rows=map) -> np.ndarray:
-        """Tokens (h, w, G) -> field (8h, 8w, 6) in the value ranges of F. The convolutions'
-        matrix products split into independent parts (halves of the rows, output phases), and
-        ``map_rows`` (a thread pool's ``map``) may compute them side by side."""
+    def decode(self, tokens: np.ndarray) -> np.ndarray:
+        """Tokens (h, w, G) -> field (8h, 8w, 6) in the value ranges of F."""
         h, w, G = tokens.shape
         x = self.codes[np.arange(G), tokens].reshape(h, w, -1)
         for kind, *params in self.layers:
             if kind == "conv":
-                x = _conv3x3(_padded(x), *params, map_rows)
+                x = _conv3x3(_padded(x), *params)
             elif kind == "res":
-                x = _apply_res_block(x, params[0], map_rows)
+                x = _apply_res_block(x, params[0])
             elif kind == "up":
-                x = _conv_transpose(x, *params, map_rows)
+                x = _conv_transpose(x, *params)
             else:
-                x = _conv3x3(_norm_silu_padded(x, _NO_AFFINE, _NO_AFFINE, 0, map_rows), *params,
-                             map_rows)
+                x = _conv3x3(_norm_silu_padded(x, _NO_AFFINE, _NO_AFFINE, 0), *params)
         out = expit(x)
         out[..., 1:3] = np.tanh(x[..., 1:3])
         return out
@@ -379,11 +373,9 @@ def _res_block(w: dict, name: str) -> dict:
             "norm2": (w[f"{body}.3.weight"], w[f"{body}.3.bias"]), "conv2": _conv_taps(w, f"{body}.5")}
 
 
-def _apply_res_block(x: np.ndarray, block: dict, map_rows=map) -> np.ndarray:
-    h = _conv3x3(_norm_silu_padded(x, *block["norm1"], GROUPS, map_rows), *block["conv1"],
-                 map_rows)
-    h = _conv3x3(_norm_silu_padded(h, *block["norm2"], GROUPS, map_rows), *block["conv2"],
-                 map_rows)
+def _apply_res_block(x: np.ndarray, block: dict) -> np.ndarray:
+    h = _conv3x3(_norm_silu_padded(x, *block["norm1"], GROUPS), *block["conv1"])
+    h = _conv3x3(_norm_silu_padded(h, *block["norm2"], GROUPS), *block["conv2"])
     return x + h
 
 
@@ -397,105 +389,36 @@ def _padded(x: np.ndarray) -> np.ndarray:
     return np.pad(np.ascontiguousarray(x, dtype=F32), ((1, 2), (1, 1), (0, 0)))
 
 
-def _norm_silu_padded(x: np.ndarray, weight: np.ndarray, bias: np.ndarray, groups: int,
-                      map_rows=map) -> np.ndarray:
-    """SiLU(GroupNorm(x)) of an image (H, W, C), written into the padded layout of
-    :func:`_padded`; ``groups`` 0 is SiLU alone. The statistics of half the groups, then the
-    output of half the rows, go through ``map_rows`` (a thread pool's ``map``): each group's
-    sums take its values in the order of a pass over that group alone, and each output value
-    depends on its own input alone, so the halves give the bits of one pass. (In one pass it
-    was a third of the decoder's time, with the second core idle.) The output is zeroed here,
-    not left to ``calloc``: fresh pages first touched by two threads at once took longer than
-    by one (a 600 x 600 field: 0.065-0.08 s against 0.042 s for one pass)."""
+def _norm_silu_padded(x: np.ndarray, weight: np.ndarray, bias: np.ndarray,
+                      groups: int) -> np.ndarray:
+    """SiLU(GroupNorm(x)) of an image (H, W, C) (``groups`` 0: SiLU alone), in the padded
+    layout of :func:`_padded`. The group statistics are summed in float64."""
     H, W, C = x.shape
-    out = np.full((H + 3, W + 2, C), 0.0, F32)
-    scale, shift = np.ones(C, F32), np.zeros(C, F32)
     if groups > 0:
-        list(map_rows(lambda span: _group_norm_terms(x, weight, bias, groups, *span, scale,
-                                                     shift), _two_spans(groups)))
-    list(map_rows(lambda span: _silu_rows(x, scale, shift, *span, out), _two_spans(H)))
-    return out
+        by_group = x.reshape(H * W, groups, C // groups)
+        mean = by_group.mean(axis=(0, 2), dtype=np.float64)
+        var = ((by_group - mean[:, None].astype(F32)) ** 2).mean(axis=(0, 2), dtype=np.float64)
+        inv = np.repeat(1.0 / np.sqrt(var + 1e-5), C // groups)
+        scale = (inv * weight).astype(F32)
+        shift = (bias - np.repeat(mean, C // groups) * inv * weight).astype(F32)
+        x = x * scale + shift
+    return _padded(x * expit(x))
 
 
-def _two_spans(n: int) -> list[tuple[int, int]]:
-    return [(0, n // 2), (n // 2, n)] if n > 1 else [(0, n)]
-
-
-@compiled((F4_3D, F4_1D, F4_1D, I8, I8, I8, F4_1D, F4_1D), nogil=True)
-def _group_norm_terms(x, weight, bias, groups, first, last, scale, shift):  # pragma: no cover
-    """GroupNorm's per-channel ``scale`` and ``shift`` for the channels of groups ``first``
-    to ``last - 1``: a pass for their means, one for their variances. (numpy made six
-    full-size temporaries.)"""
-    H, W, C = x.shape
-    size = C // groups
-    count = H * W * size
-    total = np.zeros(groups)
-    for i in range(H):
-        for j in range(W):
-            for g in range(first, last):
-                acc = total[g]
-                for c in range(g * size, (g + 1) * size):
-                    acc += x[i, j, c]
-                total[g] = acc
-    mean = np.zeros(groups, np.float32)
-    for g in range(first, last):
-        mean[g] = np.float32(total[g] / count)
-    sq = np.zeros(groups)
-    for i in range(H):
-        for j in range(W):
-            for g in range(first, last):
-                acc = sq[g]
-                for c in range(g * size, (g + 1) * size):
-                    diff = x[i, j, c] - mean[g]
-                    acc += diff * diff
-                sq[g] = acc
-    for g in range(first, last):
-        inv = np.float32(1.0 / np.sqrt(sq[g] / count + 1e-5))
-        for c in range(g * size, (g + 1) * size):
-            scale[c] = inv * weight[c]
-            shift[c] = bias[c] - mean[g] * inv * weight[c]
-
-
-@compiled((F4_3D, F4_1D, F4_1D, I8, I8, F4_3D), nogil=True)
-def _silu_rows(x, scale, shift, first, last, out):  # pragma: no cover - compiled
-    """SiLU(x * scale + shift) of rows ``first`` to ``last - 1``, into the padded ``out``."""
-    W, C = x.shape[1], x.shape[2]
-    for i in range(first, last):
-        for j in range(W):
-            for c in range(C):
-                v = x[i, j, c] * scale[c] + shift[c]
-                out[i + 1, j + 1, c] = v / (np.float32(1.0) + np.float32(math.exp(-v)))
-
-
-def _conv3x3(padded: np.ndarray, taps: np.ndarray, bias: np.ndarray,
-             map_rows=map) -> np.ndarray:
+def _conv3x3(padded: np.ndarray, taps: np.ndarray, bias: np.ndarray) -> np.ndarray:
     """3 x 3 convolution of an image given in the layout of :func:`_padded`. The padded
     image is flattened, so each tap is one matrix product on a contiguous slice (rows of the
-    result that fall on the padding columns are dropped at the end); the two halves of the
-    rows go through ``map_rows``."""
+    result that fall on the padding columns are dropped at the end)."""
     H, Wp = padded.shape[0] - 3, padded.shape[1]
     W = Wp - 2
     flat = padded.reshape(-1, padded.shape[2])
     out = np.empty((H * Wp, taps.shape[2]), F32)
     out[:] = bias
-
-    def rows(span: tuple[int, int]) -> None:
-        a, b = span
-        for dy in range(3):
-            for dx in range(3):
-                start = dy * Wp + dx
-                out[a:b] += flat[start + a:start + b] @ taps[3 * dy + dx]
-
-    list(map_rows(rows, _halves(H * Wp)))
+    for dy in range(3):
+        for dx in range(3):
+            start = dy * Wp + dx
+            out += flat[start:start + H * Wp] @ taps[3 * dy + dx]
     return np.ascontiguousarray(out.reshape(H, Wp, -1)[:, :W])
-
-
-def _halves(n: int) -> list[tuple[int, int]]:
-    """Rows 0..n in two halves, or whole where a half would be too few rows to come out of
-    the matrix product with the bits of the whole (``MIN_ROWS``)."""
-    if n < 2 * MIN_ROWS:
-        return [(0, n)]
-    return [(0, n // 2), (n // 2, n)]
 
 
 #: ConvTranspose2d(kernel 4, stride 2, padding 1): output row 2i + phase takes input rows
@@ -503,25 +426,20 @@ def _halves(n: int) -> list[tuple[int, int]]:
 _PHASE_TAPS = {0: ((0, 1), (-1, 3)), 1: ((1, 0), (0, 2))}
 
 
-def _conv_transpose(x: np.ndarray, taps: np.ndarray, bias: np.ndarray,
-                    map_rows=map) -> np.ndarray:
+def _conv_transpose(x: np.ndarray, taps: np.ndarray, bias: np.ndarray) -> np.ndarray:
     """Stride-2 4 x 4 transposed convolution (padding 1) of (H, W, Cin) -> (2H, 2W, Cout):
-    each of the four output phases is a 2 x 2 convolution of the input (through
-    ``map_rows``)."""
+    each of the four output phases is a 2 x 2 convolution of the input."""
     H, W, C = x.shape
     Wp = W + 2
     flat = np.pad(x, ((1, 2), (1, 1), (0, 0))).reshape(-1, C)
     out = np.empty((H, 2, W, 2, taps.shape[3]), F32)
-
-    def phase(py_px: tuple[int, int]) -> None:
-        py, px = py_px
-        acc = np.empty((H * Wp, taps.shape[3]), F32)
-        acc[:] = bias
-        for oy, ky in _PHASE_TAPS[py]:
-            for ox, kx in _PHASE_TAPS[px]:
-                start = (1 + oy) * Wp + 1 + ox
-                acc += flat[start:start + H * Wp] @ taps[ky, kx]
-        out[:, py, :, px] = acc.reshape(H, Wp, -1)[:, :W]
-
-    list(map_rows(phase, [(py, px) for py in _PHASE_TAPS for px in _PHASE_TAPS]))
+    for py, rows in _PHASE_TAPS.items():
+        for px, columns in _PHASE_TAPS.items():
+            acc = np.empty((H * Wp, taps.shape[3]), F32)
+            acc[:] = bias
+            for oy, ky in rows:
+                for ox, kx in columns:
+                    start = (1 + oy) * Wp + 1 + ox
+                    acc += flat[start:start + H * Wp] @ taps[ky, kx]
+            out[:, py, :, px] = acc.reshape(H, Wp, -1)[:, :W]
     return out.reshape(2 * H, 2 * W, -1)

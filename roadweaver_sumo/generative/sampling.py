@@ -85,11 +85,10 @@ class Generator:
 
 @contextmanager
 def two_threads() -> Iterator[ThreadPoolExecutor]:
-    """Two threads, each multiplying its matrices on one core: for two windows side by side or
-    a lone window's two transformer rows (with and without the condition), twice as fast as
-    one batch on two BLAS threads, whose start-up costs more than these small products; and
-    for the two parts of each decoder convolution. A row is computed the same way on any
-    thread, so neither the tokens nor the fields depend on them."""
+    """Two threads, each multiplying its matrices on one core: two windows side by side are
+    twice as fast as one on two BLAS threads, whose start-up costs more than these small
+    products. A window is computed the same way on any thread, so the tokens do not depend
+    on them."""
     with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(2) as pool:
         yield pool
 
@@ -163,13 +162,13 @@ def sample_tokens(gen: Generator, c: np.ndarray, shape: tuple[int, int], seed: i
                                                             w.steps)))
                for w in windows]
 
-    def sample(k: int, map_rows) -> None:
+    def sample(k: int) -> None:
         window = windows[k]
         y, x = window.origin
         known = canvas[y:y + g, x:x + g].reshape(g * g, G)
         out = gen.sampler.sample(modulations, streams[k], steps=window.steps, known=known,
                                  known_mask=window.known_mask, guidance=guidance,
-                                 temperature=temperature, map_rows=map_rows)
+                                 temperature=temperature)
         assert streams[k].used == len(streams[k].values)
         canvas[y:y + g, x:x + g] = out.reshape(g, g, G)
 
@@ -180,10 +179,9 @@ def sample_tokens(gen: Generator, c: np.ndarray, shape: tuple[int, int], seed: i
 
 def _in_dependency_order(windows: list[_Window], sample, pool: ThreadPoolExecutor,
                          progress) -> None:
-    """Run ``sample(k, map_rows)`` for every window once those it overlaps are done. Windows
-    that are ready together run side by side on the pool's two threads, each computing its
-    two guidance rows in turn (so their sampling between the trunks overlaps too); a window
-    that is alone (the canvas's first ones) runs here, its rows split over the pool."""
+    """Run ``sample(k)`` for every window once those it overlaps are done. Windows that are
+    ready together run side by side on the pool's two threads; a window that is alone (the
+    canvas's first ones) runs here."""
     waiting = [len(w.after) for w in windows]
     unlocks: list[list[int]] = [[] for _ in windows]
     for k, w in enumerate(windows):
@@ -204,11 +202,11 @@ def _in_dependency_order(windows: list[_Window], sample, pool: ThreadPoolExecuto
     while ready or running:
         if len(ready) == 1 and not running:
             k = ready.pop()
-            sample(k, pool.map)
+            sample(k)
             finish(k)
             continue
         for k in sorted(ready):
-            running[pool.submit(sample, k, map)] = k
+            running[pool.submit(sample, k)] = k
         ready.clear()
         done, _ = wait(running, return_when=FIRST_COMPLETED)
         for future in done:
@@ -231,18 +229,15 @@ def decode_canvas(decoder: FieldDecoder, tokens: np.ndarray, block: int = DECODE
                   margin: int = DECODE_MARGIN) -> np.ndarray:
     """Decode a token canvas (ny, nx, G) into F (8 ny, 8 nx, 6) in blocks of ``block`` tokens,
     each decoded with ``margin`` tokens of context on every side and only its centre kept, so
-    memory stays bounded on a 50 km map. The convolutions' products are split over
-    :func:`two_threads`: on BLAS's own two threads, which spin while they wait for each other,
-    a 10 km canvas took 1.3-2.6 s of CPU time on a busy machine, on these 0.55-0.7 s."""
+    memory stays bounded on a 50 km map."""
     ny, nx = tokens.shape[:2]
     out = np.zeros((8 * ny, 8 * nx, 6), dtype=np.float32)
-    with two_threads() as pool:
-        for y0 in range(0, ny, block):
-            for x0 in range(0, nx, block):
-                ya, xa = max(y0 - margin, 0), max(x0 - margin, 0)
-                yb, xb = min(y0 + block + margin, ny), min(x0 + block + margin, nx)
-                part = decoder.decode(tokens[ya:yb, xa:xb], pool.map)
-                h, w = min(block, ny - y0), min(block, nx - x0)
-                oy, ox = 8 * (y0 - ya), 8 * (x0 - xa)
-                out[8 * y0:8 * (y0 + h), 8 * x0:8 * (x0 + w)] = part[oy:oy + 8 * h, ox:ox + 8 * w]
+    for y0 in range(0, ny, block):
+        for x0 in range(0, nx, block):
+            ya, xa = max(y0 - margin, 0), max(x0 - margin, 0)
+            yb, xb = min(y0 + block + margin, ny), min(x0 + block + margin, nx)
+            part = decoder.decode(tokens[ya:yb, xa:xb])
+            h, w = min(block, ny - y0), min(block, nx - x0)
+            oy, ox = 8 * (y0 - ya), 8 * (x0 - xa)
+            out[8 * y0:8 * (y0 + h), 8 * x0:8 * (x0 + w)] = part[oy:oy + 8 * h, ox:ox + 8 * w]
     return out
