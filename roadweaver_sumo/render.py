@@ -40,9 +40,8 @@ PNG_METADATA = {"Software": None}  # no matplotlib version in the file: bytes de
 
 @functools.cache
 def matplotlib_parts() -> SimpleNamespace:
-    """The matplotlib classes the preview draws with, imported on first use: about 0.3 s, which
-    make-scenario spends in a thread while validation waits for its simulation, and which
-    commands that draw nothing never spend."""
+    """The matplotlib classes the preview draws with, imported on first use, so that commands
+    that draw nothing do not import matplotlib."""
     from matplotlib import colormaps
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.collections import LineCollection, PolyCollection

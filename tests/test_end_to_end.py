@@ -46,8 +46,9 @@ def test_timing_has_every_stage_and_the_whole_run(scenario):
     stages = timing["stages_s"]
     assert set(stages) == {"skeleton", "expansion", "hdmap", "export", "netconvert", "demand",
                            "validate", "preview"}
-    assert timing["total_s"] >= max(stages.values()) > 0
-    assert timing["validation"]["net_metrics_s"] > 0  # measured during demand routing
+    assert min(stages.values()) > 0
+    assert sum(stages.values()) <= timing["total_s"]  # the stages run one after another
+    assert timing["validation"]
 
 
 def test_same_seed_gives_byte_identical_folder(scenario, tmp_path):

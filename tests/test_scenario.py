@@ -117,21 +117,3 @@ def test_demand_routes_do_not_depend_on_how_many_trips_are_routed_first_or_on_th
         assert routed[1:] == [60, routed[-1]] and routed[-1] > 112
     else:
         assert len(routed) == 2 and routed[-1] > 112
-
-
-def test_trips_drawn_from_another_net_are_not_used(tmp_path, grid_net):
-    """Trips drawn ahead of time stand in for the first sample only if they were drawn with
-    this net's minimum trip distance: drawn from a smaller grid, they are ignored."""
-    small = tmp_path / "small"
-    small.mkdir()
-    run([binary("netgenerate"), "--grid", "--grid.number", "3", "--grid.length", "100",
-         "-o", "map.net.xml"], small, "netgenerate")  # fmt: skip
-    drawn = demand.draw_first_trips(small, "map.net.xml", vehicles=50, duration=100.0, seed=6)
-    folder = _scenario_dir(tmp_path, grid_net, "with")
-    (folder / drawn.path.name).write_bytes(drawn.path.read_bytes())
-    moved = demand.DrawnTrips(folder / drawn.path.name, drawn.min_distance)
-    with_drawn = write_demand(folder, vehicles=50, duration=100.0, seed=6, first_trips=moved)
-    alone = write_demand(_scenario_dir(tmp_path, grid_net, "alone"), vehicles=50,
-                         duration=100.0, seed=6)
-    assert with_drawn.read_bytes() == alone.read_bytes()
-    assert sorted(p.name for p in folder.iterdir()) == ["demand.rou.xml", "map.net.xml"]

@@ -4,11 +4,10 @@ import json
 
 from lxml import etree
 
-from roadweaver_sumo import pipeline
 from roadweaver_sumo.cli import main
+from roadweaver_sumo.export import netconvert
 from roadweaver_sumo.export.waiting_points import crowded_connections, wait_at_stop_line
 from roadweaver_sumo.pipeline import build_scenario_files
-from roadweaver_sumo.scenario.demand import draw_first_trips, write_demand
 from roadweaver_sumo.spec import ScenarioSpec
 
 NET = """<net>
@@ -54,37 +53,18 @@ def test_left_turner_no_longer_waits_in_the_oncoming_lane(tmp_path):
     assert 'contPos="0"' in (out / "plain" / "map.con.xml").read_text()
 
 
-def _edges(net_xml: bytes) -> list:
-    """(lane id, length, shape) of every lane of the net's normal (not internal) edges."""
-    root = etree.fromstring(net_xml)
-    return [(lane.get("id"), lane.get("length"), lane.get("shape"))
-            for edge in root.iter("edge") if edge.get("function") is None
-            for lane in edge.iter("lane")]
-
-
-def test_trips_drawn_from_the_first_net_give_the_final_nets_demand(tmp_path, monkeypatch):
-    """The same map needs netconvert twice: meanwhile randomTrips draws the demand's trips
-    from the first net. Its edges are the final net's, the demand is the one drawn from the
-    final net alone, and no temporary file is left."""
-    drafts = []
-
-    def copying(folder, net_file, **options):
-        drafts.append((folder / net_file).read_bytes())
-        return draw_first_trips(folder, net_file, **options)
-
-    monkeypatch.setattr(pipeline, "draw_first_trips", copying)
+def test_a_map_built_twice_by_netconvert_leaves_only_its_scenario_files(tmp_path, monkeypatch):
+    """The same map needs netconvert twice (cars would wait in a foe's path after the first
+    run): the folder then holds the scenario's files and no temporary one."""
     spec = ScenarioSpec(density=30, vehicles=500, seed=1, style="mixed")
     out = tmp_path / "s"
     out.mkdir()
+    calls = []
+    original = netconvert._run
+    monkeypatch.setattr(netconvert, "_run", lambda folder: (calls.append(folder),
+                                                           original(folder))[1])
     build_scenario_files(spec, out, {}, lambda msg: None)
-    assert len(drafts) == 1
+    assert len(calls) == 2
     assert sorted(p.name for p in out.iterdir()) == [
         "demand.rou.xml", "lanelet2_map.osm", "map.net.xml", "map.xodr", "netconvert.netccfg",
         "plain", "scenario.sumocfg", "spec.json"]
-    final = (out / "map.net.xml").read_bytes()
-    assert drafts[0] != final and _edges(drafts[0]) == _edges(final)
-    alone = tmp_path / "alone"
-    alone.mkdir()
-    (alone / "map.net.xml").write_bytes(final)
-    demand = write_demand(alone, vehicles=500, duration=spec.duration, seed=spec.seed)
-    assert demand.read_bytes() == (out / "demand.rou.xml").read_bytes()

@@ -9,7 +9,6 @@ comment is stripped (see shared NOTES).
 from __future__ import annotations
 
 import tempfile
-from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 from string import Template
@@ -22,7 +21,6 @@ from .waiting_points import crowded_connections, wait_at_stop_line
 TEMPLATE_PACKAGE = "roadweaver_sumo.netconvert_templates"
 CONFIG_NAME = "netconvert.netccfg"
 NET_NAME = "map.net.xml"
-DRAFT_NET_NAME = "map.draft.net.tmp.xml"
 PLAIN_FILES = {
     "node_files": "plain/map.nod.xml",
     "edge_files": "plain/map.edg.xml",
@@ -79,14 +77,9 @@ def _run(out_dir: Path) -> None:
             raise RoadweaverError(f"netconvert failed: {errors[0]}") from None
 
 
-def run_netconvert(out_dir: Path, template: str = "urban",
-                   on_draft: Callable[[Path], None] | None = None) -> Path:
-    """Build ``out_dir/map.net.xml`` from ``out_dir/plain/`` with the named template.
-
-    When netconvert has to run a second time (waiting points in a foe's path, below),
-    ``on_draft`` is called with the first net, moved to ``DRAFT_NET_NAME``, before that run:
-    its edges are the final net's (only some connections' waiting points move), so work that
-    needs only the edges can start on it meanwhile. The callee owns the draft and deletes it.
+def run_netconvert(out_dir: Path, template: str = "urban") -> Path:
+    """Build ``out_dir/map.net.xml`` from ``out_dir/plain/`` with the named template (twice
+    where cars would wait in a foe's path, below).
 
     Raises RoadweaverError (one line) when a plain file is missing, the template is unknown or
     netconvert fails; ``--ignore-errors`` is never used, so a net is complete or not written.
@@ -104,10 +97,7 @@ def run_netconvert(out_dir: Path, template: str = "urban",
     crowded = crowded_connections(net)
     if crowded:  # once more, with those cars waiting at the stop line (waiting_points.py)
         wait_at_stop_line(out_dir / PLAIN_FILES["connection_files"], crowded)
-        if on_draft is None:
-            net.unlink()
-        else:
-            on_draft(net.replace(out_dir / DRAFT_NET_NAME))
+        net.unlink()
         _run(out_dir)
     strip_generated_comment(net)
     return net

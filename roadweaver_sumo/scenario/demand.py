@@ -33,7 +33,6 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 
 from lxml import etree
@@ -47,7 +46,6 @@ DEMAND_FILE = "demand.rou.xml"
 _SAMPLE_TRIPS = "demand.sample.trips.tmp.xml"
 _SAMPLE_ROUTES = "demand.sample.rou.tmp.xml"
 _ROUTED_TRIPS = "demand.routed.trips.tmp.xml"
-_DRAWN_TRIPS = "demand.drawn.trips.tmp.xml"
 
 OVERSUPPLY = 1.25  # first request 25 % more trips than needed; doubled on each further attempt
 #: Trips routed first, as a share of the vehicles (plus ROUTE_FIRST_EXTRA): on generated maps
@@ -61,34 +59,11 @@ VEHICLE_CLASS = "passenger"
 TRIP_ATTRIBUTES = 'departLane="best" departSpeed="max"'
 
 
-@dataclass(frozen=True)
-class DrawnTrips:
-    """randomTrips' first sample for :func:`write_demand`, drawn ahead of time from a draft of
-    the net with the same edges (``export.netconvert``'s ``on_draft``), and the minimum trip
-    distance it was drawn with."""
-
-    path: Path
-    min_distance: float
-
-
-def draw_first_trips(out_dir: Path, net_file: str, *, vehicles: int, duration: float,
-                     seed: int) -> DrawnTrips:
-    """The trips :func:`write_demand`'s first attempt samples, from ``out_dir/net_file``."""
-    out_dir = Path(out_dir)
-    min_distance = _min_distance(out_dir / net_file)
-    _random_trips(out_dir, net_file, _wanted(vehicles, 0), duration, seed, min_distance,
-                  _DRAWN_TRIPS)
-    return DrawnTrips(out_dir / _DRAWN_TRIPS, min_distance)
-
-
 def write_demand(
     out_dir: Path, *, vehicles: int, duration: float, seed: int, net_file: str = "map.net.xml",
-    first_trips: DrawnTrips | None = None,
 ) -> Path:
     """Write ``out_dir/demand.rou.xml`` with exactly ``vehicles`` routed cars departing in
-    [0, duration); raise RoadweaverError when the net cannot provide that many routable trips.
-    ``first_trips`` (:func:`draw_first_trips`) stand in for the first sample when they were
-    drawn with this net's minimum distance, which they then equal."""
+    [0, duration); raise RoadweaverError when the net cannot provide that many routable trips."""
     out_dir = Path(out_dir)
     if vehicles < 1 or duration <= 0:
         raise RoadweaverError(
@@ -97,12 +72,9 @@ def write_demand(
     if not (out_dir / net_file).exists():
         raise RoadweaverError(f"demand: network {out_dir / net_file} not found")
     min_distance = _min_distance(out_dir / net_file)
-    temporary = [_SAMPLE_TRIPS, _DRAWN_TRIPS, _ROUTED_TRIPS, _SAMPLE_ROUTES]
+    temporary = [_SAMPLE_TRIPS, _ROUTED_TRIPS, _SAMPLE_ROUTES]
     with _removed_afterwards(out_dir, temporary):
-        drawn = first_trips is not None and first_trips.min_distance == min_distance
-        if drawn:
-            first_trips.path.replace(out_dir / _SAMPLE_TRIPS)
-        routes = _sample_routes(out_dir, net_file, vehicles, duration, seed, min_distance, drawn)
+        routes = _sample_routes(out_dir, net_file, vehicles, duration, seed, min_distance)
     _retime(routes, duration)
     return write_xml(routes, out_dir / DEMAND_FILE)
 
@@ -117,16 +89,13 @@ def _wanted(vehicles: int, attempt: int) -> int:
 
 def _sample_routes(
     out_dir: Path, net_file: str, vehicles: int, duration: float, seed: int, min_distance: float,
-    first_drawn: bool = False,
 ) -> etree._Element:
     """duarouter's ``<routes>`` cut down to its first ``vehicles`` routed cars between distinct
-    edges, asking randomTrips for more (same seed, larger oversupply) until there are enough.
-    ``first_drawn``: the first attempt's trips are in place already."""
+    edges, asking randomTrips for more (same seed, larger oversupply) until there are enough."""
     found = 0
     for attempt in range(MAX_ATTEMPTS):
-        if attempt or not first_drawn:
-            _random_trips(out_dir, net_file, _wanted(vehicles, attempt), duration, seed,
-                          min_distance)
+        _random_trips(out_dir, net_file, _wanted(vehicles, attempt), duration, seed,
+                      min_distance)
         first = math.ceil(vehicles * ROUTE_FIRST_SHARE) + ROUTE_FIRST_EXTRA
         for trips in (first, None):
             root, routed, all_routed = _routed(out_dir, net_file, seed, trips)
