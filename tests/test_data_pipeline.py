@@ -7,7 +7,6 @@ road graphs (a grid, a curvy town, a radial town).
 import bz2
 import gzip
 import json
-import math
 
 import networkx as nx
 import numpy as np
@@ -34,14 +33,16 @@ from roadweaver_sumo.data.prepare import (
 from roadweaver_sumo.data.projection import LocalProjection
 from roadweaver_sumo.data.tiles import coverage, cut_tile, iter_tiles, rotate_tile
 from roadweaver_sumo.errors import RoadweaverError
+from roadweaver_sumo.projection import local_to_latlon
 from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
 LAT0, LON0 = 48.0, 11.0
-M_PER_DEG = 6_371_008.8 * math.pi / 180
 
 
 def _lonlat(x: float, y: float) -> tuple[float, float]:
-    return LON0 + x / (M_PER_DEG * math.cos(math.radians(LAT0))), LAT0 + y / M_PER_DEG
+    """The WGS84 degrees of local metres around (LAT0, LON0), by pyproj's transverse Mercator."""
+    lat, lon = local_to_latlon(x, y, (LAT0, LON0))
+    return float(lon), float(lat)
 
 
 def town_xml(extra_ways: str = "") -> str:

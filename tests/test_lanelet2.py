@@ -7,15 +7,10 @@ import pytest
 from lxml import etree
 
 from roadweaver_sumo.expand import expand_skeleton
-from roadweaver_sumo.export.lanelet2 import (
-    LANE_TAG,
-    latlon_to_local,
-    local_to_latlon,
-    untangle,
-    write_lanelet2,
-)
+from roadweaver_sumo.export.lanelet2 import LANE_TAG, untangle, write_lanelet2
 from roadweaver_sumo.hdmap import build_hdmap
 from roadweaver_sumo.integrations.tactics2d import hd_lane_relations
+from roadweaver_sumo.projection import latlon_to_local, local_to_latlon
 from roadweaver_sumo.skeleton import make_skeleton
 from roadweaver_sumo.spec import ScenarioSpec
 from roadweaver_sumo.validate.lanelet2_check import (
@@ -210,26 +205,6 @@ def test_lanelet2_check_reports_a_broken_map_instead_of_crashing(tmp_path):
                       'role="left"/><tag k="type" v="lanelet"/></relation></osm>')
     result = check_lanelet2(broken, (48.0, 11.0), pairs=10)
     assert lanelet2_failures(result), result
-
-
-def test_node_lines_are_written_as_python_formats_them():
-    """The compiled node writer gives the bytes of ``_NODE_LINE % (id, lat, lon)``: also for
-    values next to a rounding tie (read back from Python's exact formatting), negative values
-    that round to zero ("-0.0000000000", as Python writes them) and every magnitude up to 180."""
-    from roadweaver_sumo.export import lanelet2 as ll2
-
-    rng = np.random.default_rng(0)
-    ties = (np.round(rng.uniform(-180, 180, 2000) * 1e10) + 0.5) / 1e10
-    edge = [0.0, -0.0, 0.5, -0.5, 1e-11, -1e-11, 5e-11, -5e-11, 180.0, -180.0, 99.99999999996,
-            9.999999999951, -0.00000000005, 48.00000000005]
-    lat = np.concatenate([rng.uniform(-90, 90, 5000), rng.uniform(47, 49, 5000), ties, edge])
-    lon = np.concatenate([rng.uniform(-180, 180, len(lat) - len(edge)), edge[::-1]])
-    ids = rng.integers(1, 10**12, len(lat))
-    separator = np.frombuffer(b"\n    ", np.uint8).copy()
-    written = ll2._node_lines(ids, *ll2._fixed_point(lat), *ll2._fixed_point(lon), separator)
-    expected = "\n    ".join(ll2._NODE_LINE % node for node in zip(ids.tolist(), lat.tolist(),
-                                                                   lon.tolist(), strict=True))
-    assert str(written.data, "ascii") == expected
 
 
 def test_dead_end_uturn_lanelets_are_valid_polygons(tmp_path):

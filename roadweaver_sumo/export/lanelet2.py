@@ -35,8 +35,8 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from shapely.geometry import LineString
 
-from ..compiled import B1, B1_1D, I8, I8_1D, U1_1D, U1_1D_CONST, compiled
 from ..hdmap.model import HDMap, Lane
+from ..projection import local_to_latlon
 from ..scenario.xmlfile import DECLARATION
 from .xmltext import Element, PlacedBlock, attr_text, escape, leaf, sub, write
 
@@ -52,68 +52,6 @@ DASHED = (("type", "line_thin"), ("subtype", "dashed"))  # lane change allowed b
 SOLID = (("type", "line_thin"), ("subtype", "solid"))  # centre line between the two directions
 CURB = (("type", "curbstone"), ("subtype", "high"))  # outer road edge
 VIRTUAL = (("type", "virtual"),)  # inside junctions: no physical marking
-
-# WGS84 ellipsoid and the Krüger series of the transverse Mercator projection to fourth order in
-# the third flattening n (Karney 2011, "Transverse Mercator with an accuracy of a few
-# nanometers", Eqs. 35-36): micrometre-exact within hundreds of kilometres of the origin.
-_A, _F = 6378137.0, 1 / 298.257223563
-_N = _F / (2 - _F)
-_E = 2 * np.sqrt(_N) / (1 + _N)  # first eccentricity
-_RECTIFYING = _A / (1 + _N) * (1 + _N**2 / 4 + _N**4 / 64)
-_ALPHA = np.array([_N / 2 - 2 * _N**2 / 3 + 5 * _N**3 / 16 + 41 * _N**4 / 180,
-                   13 * _N**2 / 48 - 3 * _N**3 / 5 + 557 * _N**4 / 1440,
-                   61 * _N**3 / 240 - 103 * _N**4 / 140,
-                   49561 * _N**4 / 161280])
-_BETA = np.array([_N / 2 - 2 * _N**2 / 3 + 37 * _N**3 / 96 - _N**4 / 360,
-                  _N**2 / 48 + _N**3 / 15 - 437 * _N**4 / 1440,
-                  17 * _N**3 / 480 - 37 * _N**4 / 840,
-                  4397 * _N**4 / 161280])
-_DELTA = np.array([2 * _N - 2 * _N**2 / 3 - 2 * _N**3 + 116 * _N**4 / 45,
-                   7 * _N**2 / 3 - 8 * _N**3 / 5 - 227 * _N**4 / 45,
-                   56 * _N**3 / 15 - 136 * _N**4 / 35,
-                   4279 * _N**4 / 630])
-_J2 = 2 * np.arange(1, 5)
-_ALPHA_J, _BETA_J, _DELTA_J = (list(zip(c.tolist(), _J2.tolist(), strict=True))
-                               for c in (_ALPHA, _BETA, _DELTA))
-
-
-def _series(terms):
-    """The sum of a series' four terms, added one after another to 0.0 as ``np.sum`` adds
-    four columns (same bits, signed zeros included), without the four-column arrays that
-    made the projection of a million nodes twice as slow."""
-    return sum(terms, 0.0)
-
-
-def _tm_forward(lat, lon, lon0):
-    """Geodetic degrees to transverse Mercator metres (easting, northing from the equator)."""
-    phi, lam = np.radians(np.asarray(lat, float)), np.radians(np.asarray(lon, float) - lon0)
-    sin_phi = np.sin(phi)
-    tau = np.sinh(np.arctanh(sin_phi) - _E * np.arctanh(_E * sin_phi))  # conformal latitude
-    xi_p = np.arctan2(tau, np.cos(lam))
-    eta_p = np.arctanh(np.sin(lam) / np.sqrt(1 + tau**2))
-    xi = xi_p + _series(a * np.sin(j * xi_p) * np.cosh(j * eta_p) for a, j in _ALPHA_J)
-    eta = eta_p + _series(a * np.cos(j * xi_p) * np.sinh(j * eta_p) for a, j in _ALPHA_J)
-    return _RECTIFYING * eta, _RECTIFYING * xi
-
-
-def latlon_to_local(lat, lon, origin: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """WGS84 degrees to local metres (x east, y north) of the map whose (0, 0) is ``origin``."""
-    lat0, lon0 = origin
-    x, y = _tm_forward(lat, lon, lon0)
-    return x, y - _tm_forward(lat0, lon0, lon0)[1]
-
-
-def local_to_latlon(x, y, origin: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """Local metres to WGS84 degrees: the inverse of :func:`latlon_to_local`."""
-    lat0, lon0 = origin
-    xi = (np.asarray(y, float) + _tm_forward(lat0, lon0, lon0)[1]) / _RECTIFYING
-    eta = np.asarray(x, float) / _RECTIFYING
-    xi_p = xi - _series(b * np.sin(j * xi) * np.cosh(j * eta) for b, j in _BETA_J)
-    eta_p = eta - _series(b * np.cos(j * xi) * np.sinh(j * eta) for b, j in _BETA_J)
-    chi = np.arcsin(np.sin(xi_p) / np.cosh(eta_p))  # conformal latitude
-    phi = chi + _series(d * np.sin(j * chi) for d, j in _DELTA_J)
-    return np.degrees(phi), lon0 + np.degrees(np.arctan2(np.sinh(eta_p), np.cos(xi_p)))
-
 
 def untangle(points: np.ndarray) -> np.ndarray:
     """``points`` without the loops and fold-backs that offsetting a sharp bend leaves in a
@@ -398,24 +336,6 @@ def _way(wid: int, nodes, tags: tuple) -> str:
     return _element("way", wid, f'<nd ref="{refs}"/>{_INNER}{_tag_lines(tags)}')
 
 
-def _planned_ways(plan: _Plan, first_id: int) -> memoryview:
-    """:func:`_way` of each planned way (ids ``first_id`` on, in plan order), joined as the
-    root's children, as ASCII bytes from a compiled writer (a million node refs as Python ints
-    and strings took a tenth of the file's time, formatting 80k ways another tenth)."""
-    tags: dict[tuple, int] = {}  # each way's tags as an index into the few tag tuples
-    rows = np.array([(way.first, way.inner.start, len(way.inner), way.last,
-                      tags.setdefault(way.tags, len(tags))) for way in plan.ways.values()],
-                    np.int64).reshape(-1, 5)
-    ends = [f"{_INNER}{_tag_lines(t)}\n{INDENT}</way>".encode() for t in tags]
-    return _way_lines(first_id, *rows.T.copy(), _uint8(b"".join(ends)),
-                      np.cumsum([0, *map(len, ends)]), _uint8(_INNER.encode()),
-                      _uint8(f"\n{INDENT}".encode())).data
-
-
-def _uint8(text: bytes) -> np.ndarray:
-    return np.frombuffer(text, np.uint8).copy()
-
-
 def _relation(rid: int, members: list[tuple[str, int, str]], tags: str) -> str:
     """A relation with its members and its ``<tag>`` lines ``tags``."""
     lines = [f'<member type="{kind}" ref="{ref}" role="{role}"/>'  # plain words: no escaping
@@ -430,149 +350,14 @@ def _degrees(value: float) -> str:
 def _add_nodes(root, hd: HDMap, ids: _Ids) -> None:
     node_ids, xy = ids.all_nodes()
     lat, lon = local_to_latlon(xy[:, 0], xy[:, 1], hd.geo_origin)
-    # The nodes are the root's children: their lines go one indent deep.
-    text = _node_lines(node_ids, *_fixed_point(lat), *_fixed_point(lon),
-                       np.frombuffer(("\n" + INDENT).encode(), np.uint8).copy())
-    root.append(PlacedBlock(text.data))  # 50 MB of bytes: written as they are, not decoded
+    lines = [_NODE_LINE % line for line in zip(node_ids.tolist(), lat.tolist(), lon.tolist(),
+                                                strict=True)]
+    if lines:  # the root's children: lines one indent deep
+        root.append(PlacedBlock(f"\n{INDENT}".join(lines)))
 
 
 _NODE_LINE = (f'<node id="%d" visible="true" version="1" lat="%.{DEGREE_DECIMALS}f"'
               f' lon="%.{DEGREE_DECIMALS}f"/>')
-_SCALE = 10.0 ** DEGREE_DECIMALS
-#: |v| 10^D of a degree value is within 2.5e-4 of its exact product (half a float spacing at
-#: 180 degrees); a fraction this far from one half rounds the same way as the exact value.
-_TIE_MARGIN = 1e-3
-
-
-def _fixed_point(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each value as ``%.{DEGREE_DECIMALS}f`` rounds it: |value| in units of 10^-D, and its
-    sign. Near a rounding tie the float product could round the other way than Python's exact
-    decimal conversion; those few values are read back from Python's own formatting."""
-    scaled = np.abs(values) * _SCALE
-    whole = np.floor(scaled)
-    frac = scaled - whole
-    units = (whole + (frac > 0.5)).astype(np.int64)
-    for k in np.flatnonzero(np.abs(frac - 0.5) < _TIE_MARGIN):
-        units[k] = int(f"{abs(values[k]):.{DEGREE_DECIMALS}f}".replace(".", ""))
-    return units, np.signbit(values)
-
-
-#: The constant pieces of ``_NODE_LINE`` around its id and two coordinates, as bytes.
-_NODE_PARTS = tuple(np.frombuffer(text, np.uint8).copy()
-                    for text in (b'<node id="', b'" visible="true" version="1" lat="',
-                                 b'" lon="', b'"/>'))
-
-
-@compiled(I8(U1_1D, I8, U1_1D_CONST))
-def _copy(out, pos, text):  # pragma: no cover - compiled
-    for i in range(len(text)):
-        out[pos + i] = text[i]
-    return pos + len(text)
-
-
-@compiled(I8(U1_1D, I8, I8, U1_1D))
-def _write_int(out, pos, value, digits):  # pragma: no cover - compiled
-    """The decimal digits of ``value`` >= 0 at ``out[pos]``; returns the position after."""
-    n = 0
-    while True:
-        digits[n] = 48 + value % 10
-        value //= 10
-        n += 1
-        if value == 0:
-            break
-    for i in range(n):
-        out[pos + i] = digits[n - 1 - i]
-    return pos + n
-
-
-#: "00" to "99": two digits per division (integer division is what the writer spends on).
-_DIGIT_PAIRS = np.frombuffer("".join(f"{k:02d}" for k in range(100)).encode(), np.uint8).copy()
-
-
-@compiled(I8(U1_1D, I8, I8, B1, U1_1D))
-def _write_fixed(out, pos, units, negative, digits):  # pragma: no cover - compiled
-    """``units`` 10^-DEGREE_DECIMALS as ``%.{DEGREE_DECIMALS}f`` writes it (the sign even
-    where the value rounds to zero, as Python does)."""
-    if negative:
-        out[pos] = 45  # "-"
-        pos += 1
-    scale = 10 ** DEGREE_DECIMALS
-    pos = _write_int(out, pos, units // scale, digits)
-    out[pos] = 46  # "."
-    pos += 1
-    rest = units % scale
-    for i in range(DEGREE_DECIMALS - 2, -1, -2):  # DEGREE_DECIMALS is even
-        pair = rest % 100
-        rest //= 100
-        out[pos + i] = _DIGIT_PAIRS[2 * pair]
-        out[pos + i + 1] = _DIGIT_PAIRS[2 * pair + 1]
-    return pos + DEGREE_DECIMALS
-
-
-@compiled(U1_1D(I8_1D, I8_1D, B1_1D, I8_1D, B1_1D, U1_1D))
-def _node_lines(ids, lat_units, lat_negative, lon_units, lon_negative, separator):  # pragma: no cover
-    """The ``<node>`` lines of the file (``_NODE_LINE``, joined by ``separator``) as ASCII
-    bytes, from fixed-point coordinates: a million Python formattings took 0.6 s at 10 km."""
-    head, mid, lon_key, tail = _NODE_PARTS
-    out = np.empty(len(ids) * (128 + len(separator)), np.uint8)
-    digits = np.empty(24, np.uint8)
-    pos = 0
-    for k in range(len(ids)):
-        if k:
-            for i in range(len(separator)):
-                out[pos + i] = separator[i]
-            pos += len(separator)
-        pos = _copy(out, pos, head)
-        pos = _write_int(out, pos, ids[k], digits)
-        pos = _copy(out, pos, mid)
-        pos = _write_fixed(out, pos, lat_units[k], lat_negative[k], digits)
-        pos = _copy(out, pos, lon_key)
-        pos = _write_fixed(out, pos, lon_units[k], lon_negative[k], digits)
-        pos = _copy(out, pos, tail)
-    return out[:pos]
-
-
-@compiled(I8(U1_1D, I8, U1_1D, I8, I8))
-def _put(out, pos, text, start, stop):  # pragma: no cover - compiled
-    """:func:`_copy` of ``text[start:stop]``, a writable array."""
-    for i in range(start, stop):
-        out[pos + i - start] = text[i]
-    return pos + stop - start
-
-
-_WAY_PARTS = tuple(np.frombuffer(text, np.uint8).copy()
-                   for text in (b'<way id="', b'" visible="true" version="1">', b'<nd ref="',
-                                b'"/>'))
-
-
-@compiled(U1_1D(I8, I8_1D, I8_1D, I8_1D, I8_1D, I8_1D, U1_1D, I8_1D, U1_1D, U1_1D))
-def _way_lines(first_id, first, inner, count, last, tag, ends, ends_at, inner_separator,
-               separator):  # pragma: no cover - compiled
-    """Per way ``first_id + k`` its ``<way>`` line, the ``<nd>`` lines of its nodes ``first``,
-    ``count`` consecutive ids from ``inner`` and ``last`` (joined by ``inner_separator``) and
-    its end ``ends[ends_at[tag]:ends_at[tag + 1]]``; ways joined by ``separator``, as ASCII
-    bytes."""
-    way_head, way_tail, head, tail = _WAY_PARTS
-    n_refs = len(first) * 2 + count.sum()
-    size = n_refs * (len(head) + 20 + len(tail) + len(inner_separator))
-    size += len(first) * (len(way_head) + 20 + len(way_tail) + len(separator) + ends.size)
-    out = np.empty(size, np.uint8)
-    digits = np.empty(24, np.uint8)
-    pos = 0
-    for k in range(len(first)):
-        if k:
-            pos = _put(out, pos, separator, 0, len(separator))
-        pos = _copy(out, pos, way_head)
-        pos = _write_int(out, pos, first_id + k, digits)
-        pos = _copy(out, pos, way_tail)
-        for i in range(count[k] + 2):
-            pos = _put(out, pos, inner_separator, 0, len(inner_separator))
-            node = first[k] if i == 0 else last[k] if i == count[k] + 1 else inner[k] + i - 1
-            pos = _copy(out, pos, head)
-            pos = _write_int(out, pos, node, digits)
-            pos = _copy(out, pos, tail)
-        pos = _put(out, pos, ends, ends_at[tag[k]], ends_at[tag[k] + 1])
-    return out[:pos]
 
 
 def _add_bounds(root, hd: HDMap) -> None:
@@ -616,9 +401,9 @@ def lanelet2_tree(hd: HDMap) -> Element:
     _add_bounds(root, hd)
     _add_nodes(root, hd, ids)
     # Ways and then relations in id order, the order their ids were given in.
-    if plan.ways:  # the root's children: lines one indent deep
-        root.append(PlacedBlock(_planned_ways(plan, next(iter(way_ids.values())))))
-    ways = [_way(wid, nodes, tags) for wid, (nodes, tags) in signal_ways.items()]
+    ways = [_way(way_ids[key], [way.first, *way.inner, way.last], way.tags)
+            for key, way in plan.ways.items()]
+    ways += [_way(wid, nodes, tags) for wid, (nodes, tags) in signal_ways.items()]
     relations = [_relation(s.id, [("way", s.light, "refers"), ("way", s.stop_line, "ref_line")],
                            _tag_lines((("type", "regulatory_element"),
                                        ("subtype", "traffic_light"))))

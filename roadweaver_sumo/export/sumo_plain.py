@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..hdmap.model import DIRECTIONS, HDMap, edge_id
+from ..projection import tmerc
 from .xmltext import Element, attr_text, leaf, write
 
 XSI = "http://www.w3.org/2001/XMLSchema-instance"
@@ -55,7 +56,7 @@ def _location(hd: HDMap) -> str:
     lat, lon = hd.geo_origin
     dlat = hd.height / METRES_PER_DEGREE
     dlon = hd.width / (METRES_PER_DEGREE * math.cos(math.radians(lat)))
-    proj = f"+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m"
+    proj = tmerc(hd.geo_origin)
     return leaf("location", attr_text((
         ("netOffset", "0.00,0.00"),
         ("convBoundary", f"0.00,0.00,{_num(hd.width)},{_num(hd.height)}"),

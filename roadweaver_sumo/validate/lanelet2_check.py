@@ -23,7 +23,8 @@ import numpy as np
 from lxml import etree
 
 from .. import children
-from ..export.lanelet2 import LANE_TAG, latlon_to_local
+from ..export.lanelet2 import LANE_TAG
+from ..projection import latlon_to_local
 
 ROUTE_SUCCESS_TARGET = 0.99
 PROJECTION_TOLERANCE_M = 0.001
