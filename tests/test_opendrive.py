@@ -10,13 +10,12 @@ from __future__ import annotations
 import math
 
 import networkx as nx
-import numpy as np
 import pytest
 from lxml import etree
 from scipy.integrate import quad
 
 from roadweaver_sumo.expand import expand_skeleton
-from roadweaver_sumo.export.opendrive import _num, _rows, write_opendrive
+from roadweaver_sumo.export.opendrive import write_opendrive
 from roadweaver_sumo.hdmap import build_hdmap, lane_reachability
 from roadweaver_sumo.metrics import road_node_count
 from roadweaver_sumo.roadgraph import add_road, new_road_graph
@@ -294,21 +293,3 @@ def test_text_tree_is_written_as_its_text_in_batches(tmp_path):
     sub(root, "end")
     written = write(root, tmp_path / "big.xml").read_text(encoding="utf-8")
     assert written == DECLARATION + to_text(root, "  ") + "\n"
-
-
-@pytest.mark.parametrize("decimals", [9, 15])
-def test_compiled_number_rows_are_what_python_formats(decimals):
-    """Every value as :func:`_num` writes it (correct rounding of the exact binary value, ties
-    to even, no ``-0``): random values of every magnitude, decimal ties and their neighbouring
-    floats, exact binary ties, zeros and values that are not finite."""
-    rng = np.random.default_rng(decimals)
-    ties = (rng.integers(0, 10**13, 20000) + 0.5) / 10.0**decimals
-    binary_ties = (2 * rng.integers(0, 10**5, 20000) + 1) * 5.0**decimals / 2.0**(decimals + 1)
-    values = np.concatenate([
-        *(rng.uniform(-scale, scale, 20000) for scale in 10.0 ** np.arange(-12, 21, 3)),
-        ties, -np.nextafter(ties, 0.0), np.nextafter(ties, 1.0), binary_ties,
-        np.nextafter(binary_ties, 0.0), [0.0, -0.0, -4e-16, np.nan, np.inf, -np.inf, 2.0**53]])
-    values = values[: len(values) // 2 * 2].reshape(-1, 2)
-    template = ' a="{}" b="{}"/>'
-    assert _rows(template, values, decimals) == [
-        template.format(_num(a, decimals), _num(b, decimals)) for a, b in values.tolist()]

@@ -32,7 +32,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..compiled import B1_2D, I8, I8_2D, U1_1D, compiled
 from ..hdmap.model import DIRECTIONS, HDMap, Lane, Road
 from ..hdmap.reference import Piece
 from .opendrive_geometry import DECIMALS, bezier_pieces
@@ -105,67 +104,16 @@ def xodr_lane_id(hd: HDMap, lane: Lane) -> int:
 
 
 def _num(x: float, decimals: int = DECIMALS) -> str:
-    """Fixed-decimal formatting, without ``-0`` (%-formatting: the digits of ``f"{x:.9f}"`` at
-    less cost than a nested format spec, on the file's most frequent call)."""
-    text = "%.*f" % (decimals, x)  # noqa: UP031 - faster here, see above
+    """Fixed-decimal formatting, without ``-0``."""
+    text = f"{x:.{decimals}f}"
     return text[1:] if text[0] == "-" and not text.strip("-0.") else text
 
 
 def _rows(template: str, values, decimals: int = DECIMALS) -> list[str]:
-    """``template`` with its ``{}`` filled by :func:`_num` of each row of ``values`` (m, k),
-    for many rows at once: a compiled writer of each value's fixed-point units (Python's
-    formatting of the file's million numbers took ~0.3 s). The product ``|value| 10^decimals``
-    is within half a float spacing of the exact one, so it rounds as the exact value does
-    unless its fraction is that close to one half: rows with such a value, or one beyond 2^52
-    units or not finite, are left to :func:`_num`."""
-    values = np.asarray(values, float).reshape(len(values), template.count("{}"))
-    with np.errstate(over="ignore", invalid="ignore"):  # not finite: left to _num
-        scaled = np.abs(values) * 10.0**decimals
-        whole = np.floor(scaled)
-        frac = scaled - whole
-        python = ~(np.abs(frac - 0.5) > scaled * 2.0**-52) | ~(scaled < 2.0**52)
-        units = np.where(python, 0.0, whole + (frac > 0.5)).astype(np.int64)
-    marked = np.frombuffer(template.replace("{}", "\0").encode(), np.uint8).copy()
-    text = _fixed_rows(marked, units, np.signbit(values) & (units > 0), decimals)
-    rows = str(text.data, "ascii").split("\n") if len(values) else []
-    for k in np.flatnonzero(python.any(axis=1)).tolist():
-        rows[k] = template.format(*(_num(v, decimals) for v in values[k].tolist()))
-    return rows
-
-
-@compiled(U1_1D(U1_1D, I8_2D, B1_2D, I8))
-def _fixed_rows(template, units, negative, decimals):  # pragma: no cover - compiled
-    """One line per row: ``template`` with each 0 byte replaced by the row's next value,
-    ``units`` 10^-decimals in fixed-point digits, a ``-`` where ``negative``."""
-    out = np.empty(len(units) * (len(template) + 1 + units.shape[1] * (decimals + 24)), np.uint8)
-    digits = np.empty(decimals + 24, np.uint8)
-    pos = 0
-    for row in range(len(units)):
-        if row:
-            out[pos] = 10  # newline
-            pos += 1
-        col = 0
-        for byte in template:
-            if byte:
-                out[pos] = byte
-                pos += 1
-                continue
-            if negative[row, col]:
-                out[pos] = 45  # "-"
-                pos += 1
-            value, n = units[row, col], 0
-            while n <= decimals or value:  # at least one digit before the point
-                digits[n] = 48 + value % 10
-                value //= 10
-                n += 1
-            for i in range(n - 1, -1, -1):
-                if i == decimals - 1:
-                    out[pos] = 46  # "."
-                    pos += 1
-                out[pos] = digits[i]
-                pos += 1
-            col += 1
-    return out[:pos]
+    """``template`` with its ``{}`` filled by :func:`_num` of each row of ``values`` (m, k)."""
+    rows = np.asarray(values, float)
+    return [template.format(*(_num(v, decimals) for v in row))
+            for row in (rows[:, None] if rows.ndim == 1 else rows).tolist()]
 
 
 def _attrs(attrs: dict) -> str:
