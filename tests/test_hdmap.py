@@ -493,6 +493,7 @@ def test_a_junction_grows_until_its_turns_fit_where_a_road_bends_into_it(monkeyp
     hd = build_hdmap(_graph(nodes, roads, 200.0))
     assert not tight_turns(hd.connectors())
     monkeypatch.setattr(build, "WIDEN_ROUNDS", 0)
+    monkeypatch.setattr(build, "drop_folding_turns", lambda hd: [])
     narrow = build_hdmap(_graph(nodes, roads, 200.0))
     assert tight_turns(narrow.connectors()) == {0}
     assert hd.junctions[0].radius > narrow.junctions[0].radius
@@ -559,3 +560,24 @@ def test_a_lane_section_starts_past_a_tight_bend_next_to_its_junction():
         arc_lengths(road.centreline)[-1] - road.sections[0].s_end
     assert start > 10.0 + 3.0 * np.radians(90.0)
     assert lane_reachability(hd) == 1.0
+
+
+def test_a_turn_that_still_folds_in_a_junction_as_wide_as_its_roads_allow_is_not_offered(
+        monkeypatch):
+    """A procedural grid map (1 km, density 22, seed 5012) where an arterial's lane ends 3 m
+    short of where a collector's lanes meet it at 42 degrees: the 138-degree right turn
+    between them folds however wide the junction (the collector is 31 m long, its trim
+    capped). The turn is dropped; every lane stays reachable (by the other movements and lane
+    changes), and without the drop the folding turn is there."""
+    from roadweaver_sumo.api import generate_map
+    from roadweaver_sumo.hdmap import build
+    from roadweaver_sumo.hdmap.junctions import folding_turns
+    from roadweaver_sumo.spec import ScenarioSpec
+
+    spec = ScenarioSpec(width=1000, height=1000, density=22, style="grid",
+                        skeleton="procedural", seed=5012, vehicles=10)
+    hd = generate_map(spec)
+    assert folding_turns(hd.connectors()) == []
+    assert lane_reachability(hd) == 1.0
+    monkeypatch.setattr(build, "drop_folding_turns", lambda hd: [])
+    assert [lane.movement for lane in folding_turns(generate_map(spec).connectors())] == ["right"]

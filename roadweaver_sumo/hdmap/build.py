@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import networkx as nx
 
-from .junctions import add_connectors, make_junctions, tight_turns
+from .junctions import add_connectors, drop_folding_turns, make_junctions, tight_turns
 from .lanes import build_road_lanes, lane_ends, make_roads, plan_reference_lines
 from .model import HDMap, Road
 from .movements import junction_plan
@@ -13,6 +13,8 @@ from .topology import add_successor_links, repair_topology
 #: A junction whose turn bends tighter than half its lane's width (its inner lane edge folds
 #: over where a reader offsets the lane from its centre line) grows by this factor, up to
 #: WIDEN_ROUNDS times; ``junction_radii`` gives enough room where roads run straight to it.
+#: A turn that still folds then is dropped where its lanes have other ways
+#: (``junctions.drop_folding_turns``).
 WIDEN_FACTOR, WIDEN_ROUNDS = 1.25, 4
 
 
@@ -45,6 +47,7 @@ def build_hdmap(
             hd.junctions[node].radius *= WIDEN_FACTOR
         roads = [hd.roads[r] for r in sorted({r for node in tight for r in hd.junctions[node].roads})]
         junctions = sorted({node for road in roads for node in (road.from_node, road.to_node)})
+    drop_folding_turns(hd)
     add_successor_links(hd)  # AddSuccessorLinks
     repair_topology(hd)  # RepairTopology
     return hd

@@ -190,17 +190,46 @@ def add_connectors(hd: HDMap, plan: list[tuple[int, str, str, str]],
     return lanes
 
 
-def tight_turns(connectors: list[Lane]) -> set[int]:
-    """Junctions of the ``connectors`` that turn (not U-turns, which pivot on purpose) more
-    tightly than half their width anywhere: the HD map pulls their inner edge in, but a
-    reader that offsets the lane from its centre line at constant width sees it fold over."""
+def folding_turns(connectors: list[Lane]) -> list[Lane]:
+    """The ``connectors`` that turn (not U-turns, which pivot on purpose) more tightly than
+    half their width anywhere: the HD map pulls their inner edge in, but a reader that offsets
+    the lane from its centre line at constant width sees it fold over."""
     turns = [lane for lane in connectors if lane.bezier is not None and lane.movement != "uturn"]
     if not turns:
-        return set()
+        return []
     _, _, curvature = bezier_sample(np.array([lane.bezier for lane in turns]))
     half = np.array([max(lane.width, lane.end_width) / 2.0 for lane in turns])
-    return {lane.junction for lane, fold in zip(turns, np.abs(curvature).max(axis=1) * half > 1.0,
-                                                strict=True) if fold}
+    return [lane for lane, fold in zip(turns, np.abs(curvature).max(axis=1) * half > 1.0,
+                                       strict=True) if fold]
+
+
+def tight_turns(connectors: list[Lane]) -> set[int]:
+    """The junctions of :func:`folding_turns`."""
+    return {lane.junction for lane in folding_turns(connectors)}
+
+
+def drop_folding_turns(hd: HDMap) -> list[str]:
+    """Remove every connector that still folds (:func:`folding_turns`) once its junction is
+    as wide as its roads allow, where the lanes it joins keep another way on: another
+    connector leaves the junction from its incoming road direction and another enters its
+    outgoing road direction (lane changes reach the lanes themselves). Such a turn is a
+    hairpin of a metre's radius (a road meeting another at an acute angle, with too little
+    road left to turn in); like a turn a real junction bans, it is not offered. Returns the
+    ids removed."""
+    def side(lane_id: str) -> tuple:
+        lane = hd.lanes[lane_id]
+        return lane.road, lane.direction
+
+    removed = []
+    for lane in folding_turns(hd.connectors()):
+        junction = hd.junctions[lane.junction]
+        others = [hd.lanes[c] for c in junction.connectors if c != lane.id]
+        if any(side(o.predecessors[0]) == side(lane.predecessors[0]) for o in others) and \
+                any(side(o.successors[0]) == side(lane.successors[0]) for o in others):
+            junction.connectors.remove(lane.id)
+            del hd.lanes[lane.id]
+            removed.append(lane.id)
+    return removed
 
 
 def _half_circle(start: np.ndarray, tangent: np.ndarray, end: np.ndarray, w0: float,
