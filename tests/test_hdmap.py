@@ -480,7 +480,7 @@ def test_a_junction_grows_until_its_turns_fit_where_a_road_bends_into_it(monkeyp
     neighbour at another angle than its lane ends do, and the right turn between them folded.
     The junction is widened until no turn folds; without widening one does."""
     from roadweaver_sumo.hdmap import build
-    from roadweaver_sumo.hdmap.junctions import tight_turns
+    from roadweaver_sumo.hdmap.junctions import folding_turns
 
     arms = [("arterial", [(-4.12, 11.75), (-5.55, 13.6), (-7.27, 15.23), (-9.28, 16.63),
                           (-43.96, 37.34)]),
@@ -491,11 +491,11 @@ def test_a_junction_grows_until_its_turns_fit_where_a_road_bends_into_it(monkeyp
     roads = [(0, k, cls, *[(100.0 + x, 100.0 + y) for x, y in pts[:-1]])
              for k, (cls, pts) in enumerate(arms, 1)]
     hd = build_hdmap(_graph(nodes, roads, 200.0))
-    assert not tight_turns(hd.connectors())
+    assert not folding_turns(hd.connectors())
     monkeypatch.setattr(build, "WIDEN_ROUNDS", 0)
-    monkeypatch.setattr(build, "drop_folding_turns", lambda hd: [])
+    monkeypatch.setattr(build, "BAN_ROUNDS", 0)
     narrow = build_hdmap(_graph(nodes, roads, 200.0))
-    assert tight_turns(narrow.connectors()) == {0}
+    assert {lane.junction for lane in folding_turns(narrow.connectors())} == {0}
     assert hd.junctions[0].radius > narrow.junctions[0].radius
 
 
@@ -567,8 +567,10 @@ def test_a_turn_that_still_folds_in_a_junction_as_wide_as_its_roads_allow_is_not
     """A procedural grid map (1 km, density 22, seed 5012) where an arterial's lane ends 3 m
     short of where a collector's lanes meet it at 42 degrees: the 138-degree right turn
     between them folds however wide the junction (the collector is 31 m long, its trim
-    capped). The turn is dropped; every lane stays reachable (by the other movements and lane
-    changes), and without the drop the folding turn is there."""
+    capped). The turn is banned and the arterial lane it entered is entered by the
+    neighbouring lane's left turn instead: every road lane still leaves and is entered
+    through its junctions (a lane entered from nowhere makes netconvert warn, one ending in
+    a junction is a dead end to CARLA). Without the ban the folding turn is there."""
     from roadweaver_sumo.api import generate_map
     from roadweaver_sumo.hdmap import build
     from roadweaver_sumo.hdmap.junctions import folding_turns
@@ -579,5 +581,10 @@ def test_a_turn_that_still_folds_in_a_junction_as_wide_as_its_roads_allow_is_not
     hd = generate_map(spec)
     assert folding_turns(hd.connectors()) == []
     assert lane_reachability(hd) == 1.0
-    monkeypatch.setattr(build, "drop_folding_turns", lambda hd: [])
+    entered = {lane.successors[0] for lane in hd.connectors()}
+    left = {lane.predecessors[0] for lane in hd.connectors()}
+    for lane in hd.lanes.values():
+        if lane.kind != "connector":
+            assert lane.id in entered and lane.id in left, lane.id
+    monkeypatch.setattr(build, "BAN_ROUNDS", 0)
     assert [lane.movement for lane in folding_turns(generate_map(spec).connectors())] == ["right"]

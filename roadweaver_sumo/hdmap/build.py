@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import networkx as nx
 
-from .junctions import add_connectors, drop_folding_turns, make_junctions, tight_turns
+from .junctions import add_connectors, folding_turns, make_junctions
 from .lanes import build_road_lanes, lane_ends, make_roads, plan_reference_lines
 from .model import HDMap, Road
 from .movements import junction_plan
@@ -13,9 +13,9 @@ from .topology import add_successor_links, repair_topology
 #: A junction whose turn bends tighter than half its lane's width (its inner lane edge folds
 #: over where a reader offsets the lane from its centre line) grows by this factor, up to
 #: WIDEN_ROUNDS times; ``junction_radii`` gives enough room where roads run straight to it.
-#: A turn that still folds then is dropped where its lanes have other ways
-#: (``junctions.drop_folding_turns``).
-WIDEN_FACTOR, WIDEN_ROUNDS = 1.25, 4
+#: A turn that still folds then is banned where its lanes have other ways on, up to
+#: BAN_ROUNDS times (the lanes it served take a neighbour lane's movement, which may fold too).
+WIDEN_FACTOR, WIDEN_ROUNDS, BAN_ROUNDS = 1.25, 4, 3
 
 
 def build_hdmap(
@@ -40,23 +40,33 @@ def build_hdmap(
     hd.junctions = make_junctions(nodes, hd.roads, traffic_lights)
     roads, junctions = list(hd.roads.values()), list(hd.junctions)
     for _ in range(WIDEN_ROUNDS + 1):
-        tight = _lanes_and_connectors(hd, roads, junctions)
+        tight = {lane.junction for lane in _lanes_and_connectors(hd, roads, junctions)}
         if not tight:
             break
         for node in tight:
             hd.junctions[node].radius *= WIDEN_FACTOR
         roads = [hd.roads[r] for r in sorted({r for node in tight for r in hd.junctions[node].roads})]
         junctions = sorted({node for road in roads for node in (road.from_node, road.to_node)})
-    drop_folding_turns(hd)
+    banned: set[tuple[str, str]] = set()
+    folds = folding_turns(hd.connectors())
+    for _ in range(BAN_ROUNDS):
+        new = {(lane.predecessors[0], lane.successors[0]) for lane in folds} - banned
+        if not new:
+            break
+        banned |= new
+        nodes = {lane.junction for lane in folds if (lane.predecessors[0], lane.successors[0]) in new}
+        folds = _lanes_and_connectors(hd, [], sorted(nodes), banned)
     add_successor_links(hd)  # AddSuccessorLinks
     repair_topology(hd)  # RepairTopology
     return hd
 
 
-def _lanes_and_connectors(hd: HDMap, roads: list[Road], junctions: list[int]) -> set[int]:
+def _lanes_and_connectors(hd: HDMap, roads: list[Road], junctions: list[int],
+                          banned: set[tuple[str, str]] = frozenset()) -> list:
     """(Re)build the lane section, reference line and lanes of ``roads`` and the connectors of
-    ``junctions`` (those at the ends of ``roads``, or all); return the junctions with a tight
-    turn (``junctions.tight_turns``)."""
+    ``junctions`` (those at the ends of ``roads``, or all; ``banned`` lane pairs left out
+    where ``movements.junction_plan`` can); return the connectors that fold
+    (``junctions.folding_turns``)."""
     plan_reference_lines(roads, [(hd.junctions[road.from_node].radius,
                                   hd.junctions[road.to_node].radius) for road in roads])
     for road in roads:  # GenerateLaneBoundaries, ConstructDirectionalLanes
@@ -68,5 +78,6 @@ def _lanes_and_connectors(hd: HDMap, roads: list[Road], junctions: list[int]) ->
     touching = dict.fromkeys(lane_id for node in junctions for r in hd.junctions[node].roads
                              for direction in "fb" for lane_id in hd.roads[r].lanes(direction))
     ends = lane_ends(map(hd.lanes.__getitem__, touching))
-    plan = [(node, *entry) for node in junctions for entry in junction_plan(hd, node, ends)]
-    return tight_turns(add_connectors(hd, plan, ends))  # ConstructJunctionConnections
+    plan = [(node, *entry) for node in junctions
+            for entry in junction_plan(hd, node, ends, banned)]
+    return folding_turns(add_connectors(hd, plan, ends))  # ConstructJunctionConnections

@@ -203,35 +203,6 @@ def folding_turns(connectors: list[Lane]) -> list[Lane]:
                                        strict=True) if fold]
 
 
-def tight_turns(connectors: list[Lane]) -> set[int]:
-    """The junctions of :func:`folding_turns`."""
-    return {lane.junction for lane in folding_turns(connectors)}
-
-
-def drop_folding_turns(hd: HDMap) -> list[str]:
-    """Remove every connector that still folds (:func:`folding_turns`) once its junction is
-    as wide as its roads allow, where the lanes it joins keep another way on: another
-    connector leaves the junction from its incoming road direction and another enters its
-    outgoing road direction (lane changes reach the lanes themselves). Such a turn is a
-    hairpin of a metre's radius (a road meeting another at an acute angle, with too little
-    road left to turn in); like a turn a real junction bans, it is not offered. Returns the
-    ids removed."""
-    def side(lane_id: str) -> tuple:
-        lane = hd.lanes[lane_id]
-        return lane.road, lane.direction
-
-    removed = []
-    for lane in folding_turns(hd.connectors()):
-        junction = hd.junctions[lane.junction]
-        others = [hd.lanes[c] for c in junction.connectors if c != lane.id]
-        if any(side(o.predecessors[0]) == side(lane.predecessors[0]) for o in others) and \
-                any(side(o.successors[0]) == side(lane.successors[0]) for o in others):
-            junction.connectors.remove(lane.id)
-            del hd.lanes[lane.id]
-            removed.append(lane.id)
-    return removed
-
-
 def _half_circle(start: np.ndarray, tangent: np.ndarray, end: np.ndarray, w0: float,
                  w1: float):
     """A U-turn from ``start`` (heading ``tangent``) to ``end`` on its left, heading back: the

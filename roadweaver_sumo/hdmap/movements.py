@@ -13,6 +13,8 @@ Rules, right-hand traffic, lane index 0 = rightmost:
   no straight movement, the incoming lanes are split between the right and the left turns);
   where the road ahead has fewer lanes, only as many go straight on, beside the turn lane,
   so that no two lanes merge inside the junction;
+* a lane pair found to fold however wide the junction (``build.build_hdmap``) is banned,
+  unless it is the only way out of its arrival or into its departure;
 * gaps are closed: an incoming lane without a movement or an outgoing lane nobody enters
   copies the movement of its nearest served neighbour lane.
 """
@@ -153,13 +155,29 @@ def _close_gaps(plan: Plan, groups: list[list[str]], side: int) -> Plan:
     return plan + added
 
 
-def junction_plan(hd: HDMap, node: int, ends: LaneEnds) -> Plan:
+def _drop_banned(plan: Plan, banned: set[tuple[str, str]], arrivals: list[Approach],
+                 departures: list[Approach]) -> Plan:
+    """``plan`` less its ``banned`` lane pairs, each kept where it is the last entry of its
+    arrival's lanes or of its departure's (gap closing then has no lane to copy from)."""
+    group = {lane: tuple(a.lanes) for a in arrivals + departures for lane in a.lanes}
+    for entry in [e for e in plan if (e[0], e[1]) in banned]:
+        rest = [e for e in plan if e != entry]
+        if any(e[0] in group[entry[0]] for e in rest) and \
+                any(e[1] in group[entry[1]] for e in rest):
+            plan = rest
+    return plan
+
+
+def junction_plan(hd: HDMap, node: int, ends: LaneEnds,
+                  banned: set[tuple[str, str]] = frozenset()) -> Plan:
     """The full, gap-free lane-to-lane plan of a junction, sorted for deterministic ids
-    (``ends``: the road lanes' ends)."""
+    (``ends``: the road lanes' ends; ``banned``: (incoming, outgoing) lane pairs to leave
+    out where the lanes have another way on)."""
     arrivals, departures = approaches(hd, node, ends)
     plan: Plan = []
     for arrival in arrivals:
         plan.extend(lane_plan(arrival, classify(arrival, departures)))
+    plan = _drop_banned(plan, banned, arrivals, departures)
     plan = _close_gaps(plan, [a.lanes for a in arrivals], side=0)
     plan = _close_gaps(plan, [d.lanes for d in departures], side=1)
     return sorted(set(plan))
