@@ -2,13 +2,7 @@
 
 from __future__ import annotations
 
-import itertools
-import math
-
-import numba as nb
 import numpy as np
-
-from .compiled import F8, F8_2D, I8_1D, compiled
 
 
 def sample_polyline(line: np.ndarray, spacing: float) -> np.ndarray:
@@ -48,54 +42,13 @@ def polyline_cells(lines, shape: tuple[int, int], res: float) -> tuple[np.ndarra
 
 
 def polyline_cells_each(lines, shape: tuple[int, int], res: float) -> list[tuple]:
-    """:func:`polyline_cells` of each polyline (of two points or more) on its own, all sampled
-    in one compiled pass (a 10 km map has 9,000 roads)."""
-    lines = [np.asarray(line, dtype=float) for line in lines if len(line) >= 2]
-    if not lines:
-        return []
-    offsets = np.r_[0, np.cumsum([len(line) for line in lines])]
-    pts, cuts = _samples(np.ascontiguousarray(np.concatenate(lines)), offsets, res / 2)
+    """:func:`polyline_cells` of each polyline (of two points or more) on its own."""
     ny, nx = shape
-    i = np.clip((pts[:, 1] / res).astype(int), 0, ny - 1)
-    j = np.clip((pts[:, 0] / res).astype(int), 0, nx - 1)
-    cuts = cuts.tolist()
-    return [(i[a:b], j[a:b]) for a, b in itertools.pairwise(cuts)]
-
-
-@compiled(nb.types.Tuple((F8_2D, I8_1D))(F8_2D, I8_1D, F8))
-def _samples(points, offsets, spacing):
-    """:func:`sample_polyline` of each line ``points[offsets[k]:offsets[k + 1]]``, stacked, and
-    where each line's samples start. The same float operations in the same order as numpy's
-    ``cumsum``, ``linspace`` and ``interp`` there, so the same bits."""
-    n = len(offsets) - 1
-    along = np.empty(len(points))  # distance from each line's start, as cumsum sums it
-    cuts = np.zeros(n + 1, dtype=np.int64)
-    for k in range(n):
-        a, b = offsets[k], offsets[k + 1]
-        along[a] = 0.0
-        for m in range(a, b - 1):
-            along[m + 1] = along[m] + math.hypot(points[m + 1, 0] - points[m, 0],
-                                                 points[m + 1, 1] - points[m, 1])
-        cuts[k + 1] = cuts[k] + max(2, math.ceil(along[b - 1] / spacing) + 1)
-    out = np.empty((cuts[n], 2))
-    for k in range(n):
-        a, b = offsets[k], offsets[k + 1]
-        total, count = along[b - 1], cuts[k + 1] - cuts[k]
-        step = total / (count - 1)
-        j = a
-        for i in range(count):
-            if i == count - 1:
-                x = total
-            elif step == 0.0:
-                x = i / (count - 1) * total
-            else:
-                x = i * step
-            while j + 1 < b and along[j + 1] <= x:
-                j += 1
-            for d in range(2):
-                if j == b - 1 or along[j] == x:
-                    out[cuts[k] + i, d] = points[j, d]
-                else:
-                    slope = (points[j + 1, d] - points[j, d]) / (along[j + 1] - along[j])
-                    out[cuts[k] + i, d] = slope * (x - along[j]) + points[j, d]
-    return out, cuts
+    cells = []
+    for line in lines:
+        if len(line) < 2:
+            continue
+        pts = sample_polyline(line, res / 2)
+        cells.append((np.clip((pts[:, 1] / res).astype(int), 0, ny - 1),
+                      np.clip((pts[:, 0] / res).astype(int), 0, nx - 1)))
+    return cells

@@ -169,32 +169,34 @@ def test_components_joined_by_pending_links_get_no_second_link():
     assert len(link_components(G, cost, 10.0, radius=200.0)) == 1
 
 
-def test_compiled_samples_equal_numpys_line_by_line():
-    from roadweaver_sumo.expand.growth import tangent_samples
-    from roadweaver_sumo.raster import polyline_cells_each, sample_polyline
+def test_line_samples_lie_on_their_lines_evenly_spaced():
+    """Growth seeds and raster cells come from points sampled along the roads: on the line,
+    ``spacing`` apart along it from its start, with the unit tangent of the piece they lie on
+    (zero-length pieces, which have none, skipped); every cell a line passes through is hit."""
+    from shapely import LineString
+
+    from roadweaver_sumo.expand.growth import _samples_each
+    from roadweaver_sumo.raster import polyline_cells_each
 
     rng = np.random.default_rng(9)
-    lines = [np.cumsum(rng.normal(size=(int(rng.integers(1, 9)), 2))
+    lines = [np.cumsum(rng.normal(size=(int(rng.integers(2, 9)), 2))
                        * rng.choice([0.0, 1e-10, 0.3, 30.0]), axis=0) + 500.0 for _ in range(300)]
-    for line, (i, j) in zip([ln for ln in lines if len(ln) >= 2],
-                            polyline_cells_each(lines, (200, 200), 5.0), strict=True):
-        pts = sample_polyline(line, 2.5)
-        assert np.array_equal(i, np.clip((pts[:, 1] / 5.0).astype(int), 0, 199))
-        assert np.array_equal(j, np.clip((pts[:, 0] / 5.0).astype(int), 0, 199))
-    pts, tans = tangent_samples(lines, 0.7)
-    expected = []
-    for line in lines:  # the numpy formulation, line by line
-        seg = np.diff(line, axis=0)
-        length = np.hypot(*seg.T)
-        keep = length > 1e-9
-        seg, length, starts = seg[keep], length[keep], line[:-1][keep]
-        s = np.concatenate([[0.0], np.cumsum(length)])
-        marks = np.arange(0.0, s[-1], 0.7)
-        k = np.clip(np.searchsorted(s, marks, side="right") - 1, 0, len(seg) - 1)
-        frac = (marks - s[k]) / length[k]
-        expected.append((starts[k] + frac[:, None] * seg[k], seg[k] / length[k][:, None]))
-    assert pts.tobytes() == np.vstack([p for p, _ in expected]).tobytes()
-    assert tans.tobytes() == np.vstack([t for _, t in expected]).tobytes()
+    pts, tans, cuts = _samples_each(lines, 0.7)
+    assert np.allclose(np.linalg.norm(tans, axis=1), 1.0)
+    for line, a, b in zip(lines, cuts[:-1], cuts[1:], strict=True):
+        shape = LineString(line)
+        assert b - a == (len(np.arange(0.0, shape.length, 0.7)) if shape.length > 1e-8 else 0)
+        along = [shape.project(shapely_point(p)) for p in pts[a:b]]
+        assert np.allclose(along, 0.7 * np.arange(b - a), atol=1e-6)
+        assert all(shape.distance(shapely_point(p)) < 1e-6 for p in pts[a:b])
+    (i, j), = polyline_cells_each([np.array([[12.0, 31.0], [188.0, 31.0]])], (200, 200), 5.0)
+    assert set(i) == {6} and set(j) == set(range(2, 38))
+
+
+def shapely_point(xy):
+    from shapely import Point
+
+    return Point(*xy)
 
 
 def test_junctions_placed_on_a_rectangular_field():
