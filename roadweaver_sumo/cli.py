@@ -104,7 +104,7 @@ def _make_scenario(args) -> int:
         duration=args.duration,
     )
     out = args.out if args.out is not None else Path("scenarios") / spec.name
-    from .pipeline import make_scenario  # after the checks: its imports take a while
+    from .pipeline import make_scenario
 
     log = (lambda msg: None) if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
     result = make_scenario(spec, out, force=args.force, validate=not args.no_validate, log=log)

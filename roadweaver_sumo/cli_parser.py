@@ -19,13 +19,13 @@ from .spec import (
     MAX_SEED,
     MAX_SIDE_M,
     MAX_VEHICLES,
+    MAX_WORKERS,
     MIN_DURATION_S,
     MIN_ROAD_NODES,
     MIN_SIDE_M,
     SKELETONS,
     STYLES,
 )
-from .suite.engines import MAX_WORKERS
 
 PROG = "roadweaver-sumo"
 # data prepare: a tile is cut from one town, and its raster is what the models train on

@@ -3,6 +3,10 @@
 The folder is built in a hidden temporary sibling and moved into place only when complete
 (``staging.staged_folder``), so an interrupted or failed run never leaves something that looks
 like a finished scenario, and an existing folder is replaced only with ``force``.
+
+Each stage imports what it runs when it begins (numba's compiled tracer, scipy, shapely,
+sumolib, ...): a run that stops early, on bad input or an existing folder, never waits for
+them, and each stage's time in ``timing.json`` includes what it loaded.
 """
 
 from __future__ import annotations
@@ -15,22 +19,9 @@ from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 
-from .expand import expand_skeleton
-from .export.map_files import write_map_files
-from .export.netconvert import run_netconvert
 from .gc_pause import cyclic_gc_paused
-from .hdmap import build_hdmap, hdmap_metrics
-from .metrics import graph_metrics
-from .render import net_drawing, render_preview
-from .scenario.demand import write_demand
-from .scenario.sumocfg import NET_FILE, write_sumocfg
-from .skeleton import make_skeleton
 from .spec import ScenarioSpec
 from .staging import staged_folder
-from .validate.net_metrics import loaded_net_metrics
-from .validate.netgraph import load_net
-from .validate.overlaps import hdmap_overlaps
-from .validate.report import check_thresholds, validate_scenario, write_report
 
 SPEC_FILE = "spec.json"
 TIMING_FILE = "timing.json"
@@ -46,6 +37,8 @@ class ScenarioResult:
 
     @property
     def failures(self) -> list[str]:
+        from .validate.report import check_thresholds
+
         return check_thresholds(self.report) if self.report else []
 
 
@@ -72,16 +65,28 @@ def make_scenario(
         drawing = None
         if validate:
             with stage("validating: net metrics, libsumo run and routing tasks", "validate"):
+                from .render import net_drawing
+                from .scenario.sumocfg import NET_FILE
+                from .validate.net_metrics import loaded_net_metrics
+                from .validate.netgraph import load_net
+                from .validate.report import validate_scenario
+
                 net = load_net(tmp / NET_FILE)
                 drawing = net_drawing(net)
                 report, timing["validation"] = validate_scenario(
                     tmp, net_figures=loaded_net_metrics(net, spec.area_km2),
                     split_routing=not cores_busy)
                 del net
+            from .validate.report import write_report
+
             write_report(tmp, report | {"generation": generation})
         else:
+            from .validate.report import write_report
+
             write_report(tmp, {"generation": generation, "validated": False})
         with stage("preview", "preview"):  # after the report: it shows the edge flows
+            from .render import render_preview
+
             render_preview(tmp, net=drawing)
         timing["total_s"] = time.perf_counter() - began
         (tmp / TIMING_FILE).write_text(_json(_rounded_timing(timing)), encoding="utf-8")
@@ -97,14 +102,25 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
     stage = partial(_timed, stages, log)
     with cyclic_gc_paused():
         with stage("skeleton ...", "skeleton"):
+            from .skeleton import make_skeleton
+
             skeleton = make_skeleton(spec)
         with stage("expansion ...", "expansion"):
+            from .expand import expand_skeleton
+
             graph = expand_skeleton(spec, skeleton)
         with stage("hdmap ...", "hdmap"):
+            from .hdmap import build_hdmap, hdmap_metrics
+
             hdmap = build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights)
         with stage("export ...", "export"):
+            from .export.map_files import write_map_files
+
             write_map_files(hdmap, folder)
             (folder / SPEC_FILE).write_text(spec.to_json(), encoding="utf-8")
+    from .metrics import graph_metrics
+    from .validate.overlaps import hdmap_overlaps
+
     generation = {
         "target_density": spec.density,
         "skeleton": skeleton.provenance,
@@ -113,8 +129,13 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
     }
     del skeleton, graph, hdmap  # their memory is free for netconvert and the simulation
     with stage("netconvert ...", "netconvert"):
+        from .export.netconvert import run_netconvert
+
         run_netconvert(folder, spec.netconvert_template)
     with stage("demand ...", "demand"):
+        from .scenario.demand import write_demand
+        from .scenario.sumocfg import write_sumocfg
+
         write_demand(folder, vehicles=spec.vehicles, duration=spec.duration, seed=spec.seed)
         write_sumocfg(folder, duration=spec.duration, seed=spec.seed)
     return generation

@@ -24,6 +24,7 @@ MIN_DURATION_S, MAX_DURATION_S = 1.0, 604_800.0  # a week of demand
 #: SUMO's tools take a seed that fits a signed 32-bit int (duarouter fails above it); the spec's
 #: seed goes to randomTrips, duarouter and the sumocfg unchanged.
 MAX_SEED = 2**31 - 1
+MAX_WORKERS = 256  # parallel scenarios of a suite
 DEFAULT_GEO_ORIGIN = (48.137, 11.575)  # lat, lon: only a label for the local metric frame
 
 # Stage ids for np.random.default_rng([seed, STAGE]): each stage draws from its own stream, so

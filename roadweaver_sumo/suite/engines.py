@@ -19,9 +19,9 @@ from concurrent.futures.process import BrokenProcessPool
 
 from .. import children
 from ..errors import RoadweaverError
+from ..spec import MAX_WORKERS
 
 ENGINES = ("local", "ray")
-MAX_WORKERS = 256
 RAY_HINT = "install it with: pip install 'roadweaver-sumo[ray]'"
 
 
