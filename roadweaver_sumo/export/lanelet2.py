@@ -326,7 +326,7 @@ def write_lanelet2(hd: HDMap, path: Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("wb") as file:
-        file.write(DECLARATION.encode())
+        file.write(DECLARATION.encode())  # double-quoted as in scenario files; lxml's has '
         with (etree.xmlfile(file, encoding="UTF-8") as xml,
               xml.element("osm", version="0.6", generator=GENERATOR)):
             for element in elements:
