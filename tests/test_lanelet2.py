@@ -7,7 +7,8 @@ import pytest
 from lxml import etree
 
 from roadweaver_sumo.expand import expand_skeleton
-from roadweaver_sumo.export.lanelet2 import LANE_TAG, untangle, write_lanelet2
+from roadweaver_sumo.export.lanelet2 import LANE_TAG, write_lanelet2
+from roadweaver_sumo.export.lanelet2_boundaries import untangle
 from roadweaver_sumo.hdmap import build_hdmap
 from roadweaver_sumo.integrations.tactics2d import hd_lane_relations
 from roadweaver_sumo.projection import latlon_to_local, local_to_latlon

@@ -8,6 +8,7 @@ connector), a degree-2 node and bent roads. XSD and ASAM checks need their own v
 from __future__ import annotations
 
 import math
+import re
 
 import networkx as nx
 import pytest
@@ -15,7 +16,8 @@ from lxml import etree
 from scipy.integrate import quad
 
 from roadweaver_sumo.expand import expand_skeleton
-from roadweaver_sumo.export.opendrive import write_opendrive
+from roadweaver_sumo.export.opendrive import CURVATURE_DECIMALS, _num, write_opendrive
+from roadweaver_sumo.export.opendrive_geometry import DECIMALS
 from roadweaver_sumo.hdmap import build_hdmap, lane_reachability
 from roadweaver_sumo.metrics import road_node_count
 from roadweaver_sumo.roadgraph import add_road, new_road_graph
@@ -244,52 +246,20 @@ def test_netconvert_imports_the_same_network(exported, tmp_path):
     assert net_lane_reachability(lane_graph(net)) == pytest.approx(lane_reachability(hd))
 
 
-def test_text_tree_writes_what_lxml_pretty_print_writes(tmp_path):
-    """The exporters' own XML tree (elements, finished leaves, finished blocks) gives the bytes
-    lxml gives for the same document, at any depth and indent."""
-    from roadweaver_sumo.export.xmltext import Block, Element, leaf, sub, write
-
-    for indent in ("  ", "    "):
-        root = Element("root", ' a="1"')
-        road = sub(root, "road", ' id="r&amp;1"')
-        road.children.append(leaf("speed", ' max="13.9"'))
-        lanes = sub(road, "lanes")
-        lanes.children.append(Block(f'<lane id="-1">\n{indent}<width a="3.2"/>\n'
-                                    f'{indent}<link>\n{indent * 2}<successor id="2"/>\n'
-                                    f'{indent}</link>\n</lane>'))
-        sub(lanes, "empty")
-        root.children.append(Block('<way id="7">\n' + indent + '<nd ref="1"/>\n</way>'))
-        ours = write(root, tmp_path / "ours.xml", indent=indent).read_bytes()
-
-        tree = etree.fromstring(ours)
-        etree.indent(tree, indent)
-        theirs = etree.tostring(tree.getroottree(), pretty_print=True, xml_declaration=True,
-                                encoding="UTF-8")
-        assert ours == theirs
-        assert tree.find("road/lanes/lane/link/successor").get("id") == "2"
+def test_numbers_are_written_with_fixed_decimals(exported):
+    """Every number with a fraction has DECIMALS decimals (an arc's curvature
+    CURVATURE_DECIMALS): the bytes do not depend on how a float happens to print."""
+    _, _, root = exported
+    numbers = [(element.tag, key, value) for element in root.iter()
+               for key, value in element.attrib.items()
+               if re.fullmatch(r"-?\d+\.\d+", value) and key != "version"]  # header's "1.0"
+    assert len(numbers) > 1000
+    for tag, key, value in numbers:
+        decimals = CURVATURE_DECIMALS if key == "curvature" else DECIMALS
+        assert len(value.split(".")[1]) == decimals, (tag, key, value)
 
 
-def test_text_tree_is_written_as_its_text_in_batches(tmp_path):
-    """Thousands of pieces (written in joined batches), a placed block too large to be joined
-    and placed blocks of bytes (written as they are) give the tree's text, in order."""
-    from roadweaver_sumo.export.xmltext import (
-        DECLARATION,
-        Element,
-        PlacedBlock,
-        leaf,
-        sub,
-        to_text,
-        write,
-    )
-
-    root = Element("root")
-    for k in range(3000):
-        sub(root, "road", f' id="{k}"').children.append(leaf("lane", f' id="{k}"'))
-    root.append(PlacedBlock("\n  ".join(f'<node id="{k}"/>' for k in range(20000))))
-    for k in range(500):
-        root.children.append(leaf("way", f' id="{k}"'))
-    root.append(PlacedBlock(memoryview(b'<relation id="1"/>\n  <relation id="2"/>')))
-    root.append(PlacedBlock(b"\n  ".join(b'<tag k="%d"/>' % k for k in range(20000))))
-    sub(root, "end")
-    written = write(root, tmp_path / "big.xml").read_text(encoding="utf-8")
-    assert written == DECLARATION + to_text(root, "  ") + "\n"
+def test_a_number_that_rounds_to_zero_is_written_without_a_sign():
+    assert [_num(x) for x in (-0.0, -4e-10, 4e-10, -6e-10)] == [
+        "0.000000000", "0.000000000", "0.000000000", "-0.000000001"]
+    assert _num(-1e-16, CURVATURE_DECIMALS) == "0.000000000000000"

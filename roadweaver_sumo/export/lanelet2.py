@@ -25,93 +25,32 @@ at the same origin reads them back within a millimetre on maps of a few kilometr
 from __future__ import annotations
 
 import bisect
-import functools
-import math
+import itertools
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from lxml import etree
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
-from shapely.geometry import LineString
 
 from ..hdmap.model import HDMap, Lane
 from ..projection import local_to_latlon
 from ..scenario.xmlfile import DECLARATION
-from .xmltext import Element, PlacedBlock, attr_text, escape, leaf, sub, write
+from .lanelet2_boundaries import untangle_all
 
 GENERATOR = "roadweaver-sumo"
 LANE_TAG = "roadweaver:lane"  # the HD map lane id of a lanelet, for loaders and debugging
 DEGREE_DECIMALS = 10  # 1e-10 degrees is about 0.01 mm
 INDENT = "    "  # the indent of the written file
 TRAFFIC_LIGHT_OFFSET_M = 1.0  # the traffic light way sits this far past the stop line
-MIN_STEP_M = 1e-3  # shorter boundary steps are dropped
 
 # lanelet2 tagging spec (lanelet2_core/doc/LinestringTagging.md)
 DASHED = (("type", "line_thin"), ("subtype", "dashed"))  # lane change allowed both ways
 SOLID = (("type", "line_thin"), ("subtype", "solid"))  # centre line between the two directions
 CURB = (("type", "curbstone"), ("subtype", "high"))  # outer road edge
 VIRTUAL = (("type", "virtual"),)  # inside junctions: no physical marking
-
-def untangle(points: np.ndarray) -> np.ndarray:
-    """``points`` without the loops and fold-backs that offsetting a sharp bend leaves in a
-    boundary, and without sub-millimetre steps; the end points stay (they are shared nodes)."""
-    points = _cut_loops(np.asarray(points, float))
-    step = np.diff(points, axis=0)
-    if (len(step) and np.hypot(step[:, 0], step[:, 1]).min() > 1.001 * MIN_STEP_M  # margin: math.hypot below
-            and (step[:-1, 0] * step[1:, 0] + step[:-1, 1] * step[1:, 1] >= 0).all()):
-        return points  # no short step and no fold-back: the loop below would keep every point
-    points = points.tolist()  # plain floats: a hot loop
-    kept = [points[0]]
-    for index, (x, y) in enumerate(points[1:], start=1):
-        if math.hypot(x - kept[-1][0], y - kept[-1][1]) < MIN_STEP_M:
-            if index == len(points) - 1 and len(kept) > 1:
-                kept[-1] = [x, y]
-            continue
-        while len(kept) >= 2 and ((kept[-1][0] - kept[-2][0]) * (x - kept[-1][0])
-                                  + (kept[-1][1] - kept[-2][1]) * (y - kept[-1][1])) < 0:
-            kept.pop()  # a turn of more than 90 degrees: the polyline folds back here
-        kept.append([x, y])
-    return np.array(kept)
-
-
-def _cut_loops(points: np.ndarray) -> np.ndarray:
-    """Replace each self-crossing loop by its crossing point (swallowtails of offset curves)."""
-    if len(points) < 4 or _turning(points) < 0.99 * math.pi or LineString(points).is_simple:
-        return points  # a polyline turning less than half a turn in all cannot cross itself
-    i = 0
-    while i < len(points) - 3:
-        a, b = points[i], points[i + 1]
-        starts, ends = points[i + 2:-1], points[i + 3:]
-        t, u = _segment_crossings(a, b, starts, ends)
-        hits = np.nonzero((t >= 0) & (t <= 1) & (u >= 0) & (u <= 1))[0]
-        if len(hits):
-            j = i + 2 + hits[-1]  # the last crossing removes the largest loop
-            crossing = a + t[hits[-1]] * (b - a)
-            points = np.vstack([points[:i + 1], crossing, points[j + 1:]])
-        i += 1
-    return points
-
-
-def _turning(points: np.ndarray) -> float:
-    """Total absolute turning (rad) of a polyline; a zero-length step only adds to it."""
-    step = np.diff(points, axis=0)
-    heading = np.arctan2(step[:, 1], step[:, 0])
-    return float(np.abs(np.angle(np.exp(1j * np.diff(heading)))).sum())
-
-
-def _segment_crossings(a, b, starts, ends):
-    """Parameters ``t`` on segment a-b and ``u`` on each segment starts-ends of their lines'
-    intersection (``inf`` for parallel segments)."""
-    d, e = b - a, ends - starts
-    denom = d[0] * e[:, 1] - d[1] * e[:, 0]
-    w = starts - a
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (w[:, 0] * e[:, 1] - w[:, 1] * e[:, 0]) / denom
-        u = (w[:, 0] * d[1] - w[:, 1] * d[0]) / denom
-    parallel = np.abs(denom) < 1e-12
-    t[parallel] = u[parallel] = np.inf
-    return t, u
 
 
 @dataclass
@@ -168,32 +107,9 @@ def _plan_ways(hd: HDMap) -> _Plan:
         _left_slot(hd, lane, plan)
         _right_slot(lane, plan)
     ways = list(plan.ways.values())
-    for way, clean in zip(ways, _clean([w.points for w in ways]), strict=True):
-        way.points = np.asarray(way.points, float) if clean else untangle(way.points)
+    for way, points in zip(ways, untangle_all([w.points for w in ways]), strict=True):
+        way.points = points
     return plan
-
-
-def _clean(polylines: list) -> np.ndarray:
-    """Per polyline, whether :func:`untangle` would return it unchanged because it turns less
-    than half a turn in all (so it cannot cross itself), has no sub-millimetre step and never
-    turns by more than 90 degrees: one vectorised pass over all boundaries of the map instead
-    of a dozen small numpy calls per boundary."""
-    sizes = np.fromiter(map(len, polylines), int, len(polylines))
-    pts = np.concatenate(polylines, dtype=float)  # (n, 2) each: no per-polyline conversion
-    owner = np.repeat(np.arange(len(polylines)), sizes)
-    step = np.diff(pts, axis=0)
-    inside = owner[1:] == owner[:-1]  # steps between two polylines are not steps
-    step, step_owner = step[inside], owner[1:][inside]
-    short = np.hypot(step[:, 0], step[:, 1]) <= 1.001 * MIN_STEP_M  # margin: untangle's hypot
-    pair = step_owner[1:] == step_owner[:-1]
-    fold = (step[:-1, 0] * step[1:, 0] + step[:-1, 1] * step[1:, 1] < 0)[pair]
-    heading = np.arctan2(step[:, 1], step[:, 0])
-    turn = np.abs(np.angle(np.exp(1j * (heading[1:] - heading[:-1])[pair])))
-    n = len(polylines)
-    turning = np.bincount(step_owner[1:][pair], weights=turn, minlength=n)
-    bad = (np.bincount(step_owner[short], minlength=n)
-           + np.bincount(step_owner[1:][pair][fold], minlength=n))
-    return (bad == 0) & ((sizes < 4) | (turning < 0.99 * math.pi)) & (sizes >= 2)
 
 
 class _Ids:
@@ -309,85 +225,74 @@ def speed_limit_tag(speed_mps: float) -> str:
     return f"{round(speed_mps * 3.6, 2):g}"
 
 
-_INNER = "\n" + 2 * INDENT  # between the children of a way or relation
-_BETWEEN_REFS = f'"/>{_INNER}<nd ref="'
+def _osm_element(tag: str, eid: int, **attrs: str) -> etree._Element:
+    """A node, way or relation with OSM's id attributes (JOSM's style)."""
+    return etree.Element(tag, id=str(eid), visible="true", version="1", **attrs)
 
 
-def _element(tag: str, eid: int, children: str) -> str:
-    """An element with OSM's id attributes and its children's finished lines (joined by
-    ``_INNER``), as text to be placed one indent deep: ways and relations number tens of
-    thousands, each with a handful of children, so each is formatted in one go."""
-    return f'<{tag} id="{eid}" visible="true" version="1">{_INNER}{children}\n{INDENT}</{tag}>'
+def _add_tags(element: etree._Element, tags) -> None:
+    for key, value in tags:
+        etree.SubElement(element, "tag", k=key, v=value)
 
 
-@functools.lru_cache(maxsize=4096)
-def _tag_lines(tags: tuple) -> str:
-    """``<tag>`` lines of a tags tuple, cached: way tags repeat thousands of times, and lanelet
-    tags other than the lane id take few values."""
-    return _INNER.join(_tag_line(key, value) for key, value in tags)
+def _add_member(relation: etree._Element, kind: str, ref: int, role: str) -> None:
+    etree.SubElement(relation, "member", type=kind, ref=str(ref), role=role)
 
 
-def _tag_line(key: str, value: str) -> str:
-    return leaf("tag", attr_text((("k", key), ("v", value))))
+def _way(wid: int, nodes, tags: tuple) -> etree._Element:
+    way = _osm_element("way", wid)
+    for node in nodes:
+        etree.SubElement(way, "nd", ref=str(node))
+    _add_tags(way, tags)
+    return way
 
 
-def _way(wid: int, nodes, tags: tuple) -> str:
-    refs = _BETWEEN_REFS.join(map(str, nodes))
-    return _element("way", wid, f'<nd ref="{refs}"/>{_INNER}{_tag_lines(tags)}')
+def _traffic_light(signal: _Signal) -> etree._Element:
+    """The traffic light regulatory element of one approach."""
+    relation = _osm_element("relation", signal.id)
+    _add_member(relation, "way", signal.light, "refers")
+    _add_member(relation, "way", signal.stop_line, "ref_line")
+    _add_tags(relation, (("type", "regulatory_element"), ("subtype", "traffic_light")))
+    return relation
 
 
-def _relation(rid: int, members: list[tuple[str, int, str]], tags: str) -> str:
-    """A relation with its members and its ``<tag>`` lines ``tags``."""
-    lines = [f'<member type="{kind}" ref="{ref}" role="{role}"/>'  # plain words: no escaping
-             for kind, ref, role in members]
-    return _element("relation", rid, _INNER.join([*lines, tags]))
+def _lanelet(rid: int, lane: Lane, left: int, right: int, regulatory: int | None) -> etree._Element:
+    """A lane's lanelet relation: its bounds, its traffic light if any, its speed limit and its
+    own id."""
+    relation = _osm_element("relation", rid)
+    _add_member(relation, "way", left, "left")
+    _add_member(relation, "way", right, "right")
+    if regulatory is not None:
+        _add_member(relation, "relation", regulatory, "regulatory_element")
+    _add_tags(relation, (("type", "lanelet"), ("subtype", "road"), ("location", "urban"),
+                         ("one_way", "yes"), ("speed_limit", speed_limit_tag(lane.speed)),
+                         (LANE_TAG, lane.id)))
+    return relation
 
 
 def _degrees(value: float) -> str:
     return f"{value:.{DEGREE_DECIMALS}f}"
 
 
-def _add_nodes(root, hd: HDMap, ids: _Ids) -> None:
-    node_ids, xy = ids.all_nodes()
-    lat, lon = local_to_latlon(xy[:, 0], xy[:, 1], hd.geo_origin)
-    lines = [_NODE_LINE % line for line in zip(node_ids.tolist(), lat.tolist(), lon.tolist(),
-                                                strict=True)]
-    if lines:  # the root's children: lines one indent deep
-        root.append(PlacedBlock(f"\n{INDENT}".join(lines)))
-
-
-_NODE_LINE = (f'<node id="%d" visible="true" version="1" lat="%.{DEGREE_DECIMALS}f"'
-              f' lon="%.{DEGREE_DECIMALS}f"/>')
-
-
-def _add_bounds(root, hd: HDMap) -> None:
+def _bounds(hd: HDMap) -> etree._Element:
     lat, lon = local_to_latlon([0.0, hd.width, 0.0, hd.width], [0.0, 0.0, hd.height, hd.height],
                                hd.geo_origin)
-    sub(root, "bounds", attr_text((("minlat", _degrees(lat.min())), ("minlon", _degrees(lon.min())),
-                                   ("maxlat", _degrees(lat.max())), ("maxlon", _degrees(lon.max())))))
+    return etree.Element("bounds", minlat=_degrees(lat.min()), minlon=_degrees(lon.min()),
+                         maxlat=_degrees(lat.max()), maxlon=_degrees(lon.max()))
 
 
-def _lanelet(rid: int, lane: Lane, left: int, right: int, regulatory: int | None) -> str:
-    """A lane's lanelet relation: its bounds, its traffic light if any, the tags of its speed
-    (cached) and its own id, formatted in one go (one per lane; ``LANE_TAG`` and the member
-    words are plain words, only the lane id needs escaping)."""
-    members = (f'<member type="way" ref="{left}" role="left"/>{_INNER}'
-               f'<member type="way" ref="{right}" role="right"/>')
-    if regulatory is not None:
-        members += f'{_INNER}<member type="relation" ref="{regulatory}" role="regulatory_element"/>'
-    return _element("relation", rid, f'{members}{_INNER}{_lanelet_speed_tags(lane.speed)}'
-                                     f'{_INNER}<tag k="{LANE_TAG}" v="{escape(lane.id)}"/>')
+def _nodes(hd: HDMap, ids: _Ids) -> Iterator[etree._Element]:
+    node_ids, xy = ids.all_nodes()
+    lat, lon = local_to_latlon(xy[:, 0], xy[:, 1], hd.geo_origin)
+    for nid, node_lat, node_lon in zip(node_ids.tolist(), lat.tolist(), lon.tolist(),
+                                       strict=True):
+        yield _osm_element("node", nid, lat=_degrees(node_lat), lon=_degrees(node_lon))
 
 
-@functools.lru_cache(maxsize=256)
-def _lanelet_speed_tags(speed: float) -> str:
-    """The ``<tag>`` lines of a lanelet but its lane id: they differ only by speed."""
-    return _tag_lines((("type", "lanelet"), ("subtype", "road"), ("location", "urban"),
-                       ("one_way", "yes"), ("speed_limit", speed_limit_tag(speed))))
-
-
-def lanelet2_tree(hd: HDMap) -> Element:
-    """The ``<osm>`` element of ``hd`` in lanelet2 format (see the module docstring)."""
+def osm_elements(hd: HDMap) -> Iterator[etree._Element]:
+    """The children of ``hd``'s ``<osm>`` element in lanelet2 format (see the module docstring),
+    in file order: bounds, nodes, ways, relations, each in id order. Ids are all given before
+    the first element is made; the elements are made one at a time, as they are asked for."""
     if hd.geo_origin is None:
         raise ValueError("the HD map has no geo_origin; lanelet2 files need lat/lon")
     ids = _Ids()
@@ -396,30 +301,37 @@ def lanelet2_tree(hd: HDMap) -> Element:
     way_ids = {key: ids.new() for key in plan.ways}  # consecutive, in plan order
     signals, signal_ways = _signals(hd, plan, ids)
     regulatory = {lane: s.id for s in signals for lane in s.lanes}
-
-    root = Element("osm", attr_text((("version", "0.6"), ("generator", GENERATOR))))
-    _add_bounds(root, hd)
-    _add_nodes(root, hd, ids)
-    # Ways and then relations in id order, the order their ids were given in.
-    ways = [_way(way_ids[key], [way.first, *way.inner, way.last], way.tags)
-            for key, way in plan.ways.items()]
-    ways += [_way(wid, nodes, tags) for wid, (nodes, tags) in signal_ways.items()]
-    relations = [_relation(s.id, [("way", s.light, "refers"), ("way", s.stop_line, "ref_line")],
-                           _tag_lines((("type", "regulatory_element"),
-                                       ("subtype", "traffic_light"))))
-                 for s in signals]
-    relations += [_lanelet(ids.new(), lane, way_ids[plan.slots[(lane.id, "left")]],
-                           way_ids[plan.slots[(lane.id, "right")]], regulatory.get(lane.id))
-                  for lane in sorted(hd.lanes.values(), key=lambda lane: lane.id)]
-    for elements in (ways, relations):
-        if elements:  # the root's children: lines one indent deep
-            root.append(PlacedBlock(f"\n{INDENT}".join(elements)))
-    return root
+    lanes = sorted(hd.lanes.values(), key=lambda lane: lane.id)
+    lanelet_ids = [ids.new() for _ in lanes]
+    return itertools.chain(
+        [_bounds(hd)],
+        _nodes(hd, ids),
+        (_way(way_ids[key], [way.first, *way.inner, way.last], way.tags)
+         for key, way in plan.ways.items()),
+        (_way(wid, nodes, tags) for wid, (nodes, tags) in signal_ways.items()),
+        map(_traffic_light, signals),
+        (_lanelet(rid, lane, way_ids[plan.slots[(lane.id, "left")]],
+                  way_ids[plan.slots[(lane.id, "right")]], regulatory.get(lane.id))
+         for rid, lane in zip(lanelet_ids, lanes, strict=True)))
 
 
 def write_lanelet2(hd: HDMap, path: Path) -> Path:
     """Write ``hd`` as a lanelet2-format OSM file (parent folders created) and return its
-    path."""
+    path.
+
+    Streamed: each child of ``<osm>`` is made, indented and written in turn, never the whole
+    tree at once. The file holds every boundary point of the map as a node, and a tree of
+    lxml elements holds several times the file's size in memory."""
+    elements = osm_elements(hd)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    return write(lanelet2_tree(hd), path, indent=INDENT, declaration=DECLARATION)
+    with path.open("wb") as file:
+        file.write(DECLARATION.encode())  # double-quoted as in scenario files; lxml's has '
+        with (etree.xmlfile(file, encoding="UTF-8") as xml,
+              xml.element("osm", version="0.6", generator=GENERATOR)):
+            for element in elements:
+                etree.indent(element, INDENT, level=1)
+                xml.write(f"\n{INDENT}", element)
+            xml.write("\n")
+        file.write(b"\n")
+    return path

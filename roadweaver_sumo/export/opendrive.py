@@ -31,11 +31,11 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+from lxml import etree
 
 from ..hdmap.model import DIRECTIONS, HDMap, Lane, Road
 from ..hdmap.reference import Piece
 from .opendrive_geometry import DECIMALS, bezier_pieces
-from .xmltext import Block, Element, PlacedBlock, cdata, escape, leaf, sub, write
 
 CURVATURE_DECIMALS = 15  # an arc's end moves by length^2 / 2 times the curvature's rounding
 DATE = "2025-01-01T00:00:00"  # fixed, so that two runs write the same bytes
@@ -49,31 +49,25 @@ def write_opendrive(hd: HDMap, path: Path) -> Path:
     """Write ``hd`` as OpenDRIVE 1.7 to ``path`` (parent folders created); return the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    return write(opendrive_tree(hd), path)
+    etree.ElementTree(opendrive_tree(hd)).write(path, pretty_print=True, xml_declaration=True,
+                                                encoding="UTF-8")
+    return path
 
 
-def opendrive_tree(hd: HDMap) -> Element:
+def opendrive_tree(hd: HDMap) -> etree._Element:
     """The ``<OpenDRIVE>`` element of ``hd``: header, roads, connecting roads, controllers,
     junctions, in that (schema) order."""
-    rids = sorted(hd.roads)
-    plans = {rid: hd.roads[rid].plan for rid in rids}
     connecting = connecting_road_ids(hd)
     junctions = junction_ids(hd)
-    signals, controllers = _traffic_lights(hd, plans)
-    root = Element("OpenDRIVE")
+    signals, controllers = _traffic_lights(hd)
+    root = etree.Element("OpenDRIVE")
     root.append(_header(hd))
-    for (rid, plan), view in zip(plans.items(), _plan_views(list(plans.values())), strict=True):
-        root.append(_road(hd, hd.roads[rid], plan, view, signals.get(rid, []), junctions))
+    for rid in sorted(hd.roads):
+        root.append(_road(hd, hd.roads[rid], signals.get(rid, []), junctions))
     connectors = hd.connectors()
-    pieces, curves = _connector_pieces(connectors)
-    geometries = _rows(_GEOMETRY, [p[1:6] for p in pieces])
-    numbers = _connector_numbers(connectors, pieces)
-    roads = [_connecting_road(hd, lane, connecting[lane.id], junctions[lane.junction], geometry,
-                              curve, texts)
-             for lane, geometry, curve, texts in zip(connectors, geometries, curves, numbers,
-                                                     strict=True)]
-    if roads:  # the root's children: lines one indent deep
-        root.append(PlacedBlock("\n  ".join(roads)))
+    for lane, piece in zip(connectors, _connector_pieces(connectors), strict=True):
+        root.append(_connecting_road(hd, lane, piece, connecting[lane.id],
+                                     junctions[lane.junction]))
     root.extend(controllers)
     for jid in sorted(hd.junctions):
         if hd.junctions[jid].connectors:
@@ -109,54 +103,23 @@ def _num(x: float, decimals: int = DECIMALS) -> str:
     return text[1:] if text[0] == "-" and not text.strip("-0.") else text
 
 
-def _rows(template: str, values, decimals: int = DECIMALS) -> list[str]:
-    """``template`` with its ``{}`` filled by :func:`_num` of each row of ``values`` (m, k)."""
-    rows = np.asarray(values, float)
-    return [template.format(*(_num(v, decimals) for v in row))
-            for row in (rows[:, None] if rows.ndim == 1 else rows).tolist()]
+def _attrs(attrs: dict) -> dict[str, str]:
+    """Attribute values as text: floats with fixed decimals, ids and counts as they are."""
+    return {key: _num(value) if isinstance(value, float) else str(value)
+            for key, value in attrs.items()}
 
 
-def _attrs(attrs: dict) -> str:
-    """Attribute text: floats with fixed decimals, a trailing ``_`` dropped (``from_``)."""
-    parts = []
-    for key, value in attrs.items():
-        if isinstance(value, float):
-            value = _num(value)
-        elif isinstance(value, str):
-            value = escape(value)
-        else:  # ids and counts: nothing to escape
-            value = str(value)
-        parts.append(f' {key.rstrip("_")}="{value}"')
-    return "".join(parts)
-
-
-_ZERO = _num(0.0)
-_GEOMETRY = "<geometry" + "".join(f' {key}="{{}}"' for key in ("s", "x", "y", "hdg", "length")) + ">"
-_PARAM_POLY3 = ("<paramPoly3" + "".join(f' {c}{axis}="{{}}"' for axis in "UV" for c in "abcd")
-                + ' pRange="normalized"/>')
-# A white road mark on a lane's outer border (``broken`` lines may be crossed).
-_MARKS = {kind: leaf("roadMark", _attrs({"sOffset": 0.0, "type": kind, "weight": "standard",
-                                         "color": "standard", "width": MARK_WIDTH,
-                                         "laneChange": "both" if kind == "broken" else "none"}))
-          for kind in ("solid", "broken")}
-
-
-def _elem(tag: str, **attrs) -> Element:
+def _elem(tag: str, **attrs) -> etree._Element:
     """A new element with formatted attributes."""
-    return Element(tag, _attrs(attrs))
+    return etree.Element(tag, _attrs(attrs))
 
 
-def _sub(parent: Element, tag: str, **attrs) -> Element:
+def _sub(parent: etree._Element, tag: str, **attrs) -> etree._Element:
     """A new child element with formatted attributes."""
-    return sub(parent, tag, _attrs(attrs))
+    return etree.SubElement(parent, tag, _attrs(attrs))
 
 
-def _leaf(parent: Element, tag: str, **attrs) -> None:
-    """A new childless child element with formatted attributes (cheaper than :func:`_sub`)."""
-    parent.children.append(leaf(tag, _attrs(attrs)))
-
-
-def _header(hd: HDMap) -> Element:
+def _header(hd: HDMap) -> etree._Element:
     """``<header>`` with the map extent and a transverse Mercator geo-reference centred on
     the local origin (chapter "Georeferencing": PROJ string)."""
     header = _elem("header", revMajor=1, revMinor=7, name="roadweaver-sumo", version="1.0",
@@ -166,105 +129,94 @@ def _header(hd: HDMap) -> Element:
         lat, lon = hd.geo_origin
         proj = (f"+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +ellps=WGS84"
                 " +units=m +no_defs")
-        sub(header, "geoReference").text = cdata(proj)
+        etree.SubElement(header, "geoReference").text = etree.CDATA(proj)
     return header
 
 
-def _plan_views(plans: list[list[Piece]]) -> list[str]:
-    """Each road's ``<planView>``: one ``<geometry>`` per line or arc piece (chapter
-    "Geometry"), as one finished block in the file's two-space indent; the numbers of all
-    roads are formatted at once (geometries are the file's most numerous element)."""
-    pieces = [p for plan in plans for p in plan]
-    geometries = iter(_rows("  " + _GEOMETRY, [p[1:6] for p in pieces]))
-    arcs = iter(_rows('    <arc curvature="{}"/>',
-                      [p.curvature for p in pieces if p.kind == "arc"], CURVATURE_DECIMALS))
-    views = []
-    for plan in plans:
-        lines = ["<planView>"]
-        for p in plan:
-            lines.append(next(geometries))
-            lines.append(next(arcs) if p.kind == "arc" else "    <line/>")
-            lines.append("  </geometry>")
-        lines.append("</planView>")
-        views.append(Block("\n".join(lines)) if plan else "<planView/>")
-    return views
-
-
-def _road_element(rid: int, name: str, junction: int, pieces: list[Piece]) -> Element:
+def _road_element(rid: int, name: str, junction: int, pieces: list[Piece]) -> etree._Element:
     """An empty ``<road>`` as long as its plan view, right-hand traffic."""
-    length = sum(p.length for p in pieces)  # formatted inline (what _elem would write)
-    return Element("road", f' id="{rid}" name="{escape(name)}" junction="{junction}"'
-                           f' length="{_num(length)}" rule="RHT"')
+    return _elem("road", id=rid, name=name, junction=junction,
+                 length=float(sum(p.length for p in pieces)), rule="RHT")
 
 
-def _road(hd: HDMap, road: Road, pieces: list[Piece], plan_view: str, signals: list,
-          junctions: dict[int, int]) -> Element:
+def _add_plan_view(road: etree._Element, pieces: list[Piece]) -> None:
+    """``<planView>``: one ``<geometry>`` per piece (chapter "Geometry"), a line, an arc or
+    a normalised ``paramPoly3``."""
+    plan_view = etree.SubElement(road, "planView")
+    for p in pieces:
+        geometry = _sub(plan_view, "geometry", s=p.s, x=p.x, y=p.y, hdg=p.hdg, length=p.length)
+        if p.kind == "line":
+            etree.SubElement(geometry, "line")
+        elif p.kind == "arc":
+            etree.SubElement(geometry, "arc", curvature=_num(p.curvature, CURVATURE_DECIMALS))
+        else:
+            coefficients = {f"{c}{axis}": value for axis, values in (("U", p.u), ("V", p.v))
+                            for c, value in zip("abcd", values, strict=True)}
+            _sub(geometry, "paramPoly3", **coefficients, pRange="normalized")
+
+
+def _road(hd: HDMap, road: Road, signals: list, junctions: dict[int, int]) -> etree._Element:
     """A road between two junctions (their ids ``junctions``): its two driving directions as
     right and left lanes."""
-    elem = _road_element(road.id, f"r{road.id}", -1, pieces)
+    elem = _road_element(road.id, f"r{road.id}", -1, road.plan)
     ends = [(tag, node) for tag, node in (("predecessor", road.from_node),
                                           ("successor", road.to_node))
             if hd.junctions[node].connectors]  # a junction without connectors is not written
     if ends:
-        link = _sub(elem, "link")
+        link = etree.SubElement(elem, "link")
         for tag, node in ends:
-            _leaf(link, tag, elementType="junction", elementId=junctions[node])
-    _road_type(elem, road.road_class, road.speed)
-    elem.children.append(plan_view)
-    elem.children.append(_lanes(hd, road))
+            _sub(link, tag, elementType="junction", elementId=junctions[node])
+    _add_type(elem, road.road_class, road.speed)
+    _add_plan_view(elem, road.plan)
+    _add_lanes(elem, hd, road)
     if signals:
-        _sub(elem, "signals").extend(signals)
+        etree.SubElement(elem, "signals").extend(signals)
     return elem
 
 
-def _road_type(road: Element, road_class: str, speed: float) -> None:
-    """``<type>`` ``town`` with the class speed limit (chapter "Road type") and the road
-    class as user data."""
-    kind = sub(road, "type", f' s="{_ZERO}" type="{ROAD_TYPE}"')
-    kind.children.append(f'<speed max="{_num(float(speed))}" unit="m/s"/>')
-    kind.children.append(_road_class(road_class))
+def _add_type(road: etree._Element, road_class: str, speed: float) -> None:
+    """``<type>`` ``town`` with the class speed limit (chapter "Road type") and the HD map
+    road class as ``<userData>`` (chapter "Ancillary data")."""
+    kind = _sub(road, "type", s=0.0, type=ROAD_TYPE)
+    _sub(kind, "speed", max=float(speed), unit="m/s")
+    _sub(kind, "userData", code="roadClass", value=road_class)
 
 
-def _road_class(road_class: str) -> str:
-    """The HD map road class as ``<userData>`` (chapter "Ancillary data")."""
-    return f'<userData code="roadClass" value="{escape(road_class)}"/>'
-
-
-def _lanes(hd: HDMap, road: Road) -> Block:
+def _add_lanes(road_elem: etree._Element, hd: HDMap, road: Road) -> None:
     """``<lanes>``: one lane section, left lanes outermost (id n) first and right lanes
-    innermost (id -1) first (descending ids), as one finished block in the file's two-space
-    indent (lanes are the file's most numerous element after geometries)."""
-    centre = _MARKS["solid" if road.road_class == "arterial" else "broken"]
-    return Block("\n".join([
-        "<lanes>", f'  <laneSection s="{_ZERO}">',
-        *_side(hd, "left", road.lanes("b")),
-        "    <center>", '      <lane id="0" type="none">', f"        {centre}", "      </lane>",
-        "    </center>",
-        *_side(hd, "right", reversed(road.lanes("f"))),
-        "  </laneSection>", "</lanes>"]))
+    innermost (id -1) first (descending ids)."""
+    section = _sub(etree.SubElement(road_elem, "lanes"), "laneSection", s=0.0)
+    _add_side(section, hd, "left", road.lanes("b"))
+    centre = _sub(etree.SubElement(section, "center"), "lane", id=0, type="none")
+    _add_mark(centre, "solid" if road.road_class == "arterial" else "broken")
+    _add_side(section, hd, "right", reversed(road.lanes("f")))
 
 
-def _side(hd: HDMap, tag: str, lane_ids) -> list[str]:
-    """The lines of ``<left>`` or ``<right>`` with its lanes: constant width, the outer road
-    mark, speed limit. No ``<link>``: the road ends in junctions at both ends (rule
+def _add_side(section: etree._Element, hd: HDMap, tag: str, lane_ids) -> None:
+    """``<left>`` or ``<right>`` with its lanes: constant width, the outer road mark, speed
+    limit. No ``<link>``: the road ends in junctions at both ends (rule
     road.lane.link.no_link)."""
-    lines = []
+    side = etree.SubElement(section, tag)
     for lane in map(hd.lanes.__getitem__, lane_ids):
-        mark = _MARKS["solid" if lane.index == 0 else "broken"]  # index 0: the outermost lane
-        lines += [f'      <lane id="{xodr_lane_id(hd, lane)}" type="driving">',
-                  f"        {_width(_num(float(lane.width)), _ZERO)}", f"        {mark}",
-                  f"        {_speed(_num(float(lane.speed)))}", "      </lane>"]
-    return [f"    <{tag}>", *lines, f"    </{tag}>"] if lines else [f"    <{tag}/>"]
+        elem = _sub(side, "lane", id=xodr_lane_id(hd, lane), type="driving")
+        _add_width(elem, float(lane.width), 0.0)
+        _add_mark(elem, "solid" if lane.index == 0 else "broken")  # index 0: the outermost
+        _add_speed(elem, float(lane.speed))
 
 
-def _width(a: str, b: str) -> str:
-    """``<width>`` text: linear width ``a + b s``, both written (formatted inline: one per
-    lane)."""
-    return f'<width sOffset="{_ZERO}" a="{a}" b="{b}" c="{_ZERO}" d="{_ZERO}"/>'
+def _add_mark(lane: etree._Element, kind: str) -> None:
+    """A white road mark on the lane's outer border (``broken`` lines may be crossed)."""
+    _sub(lane, "roadMark", sOffset=0.0, type=kind, weight="standard", color="standard",
+         width=MARK_WIDTH, laneChange="both" if kind == "broken" else "none")
 
 
-def _speed(speed: str) -> str:
-    return f'<speed sOffset="{_ZERO}" max="{speed}" unit="m/s"/>'
+def _add_width(lane: etree._Element, a: float, b: float) -> None:
+    """``<width>``: linear width ``a + b s``."""
+    _sub(lane, "width", sOffset=0.0, a=a, b=b, c=0.0, d=0.0)
+
+
+def _add_speed(lane: etree._Element, speed: float) -> None:
+    _sub(lane, "speed", sOffset=0.0, max=speed, unit="m/s")
 
 
 def _contact(lane: Lane, arriving: bool) -> str:
@@ -273,99 +225,60 @@ def _contact(lane: Lane, arriving: bool) -> str:
     return "end" if (lane.direction == "f") == arriving else "start"
 
 
-def _connector_pieces(connectors: list[Lane]) -> tuple[list[Piece], list[str]]:
-    """Each connector's one plan-view piece and the line that gives its shape: its Bezier as an
-    exact ``paramPoly3``, or the half circle of a U-turn (``lane.plan``) as an ``arc``."""
+def _connector_pieces(connectors: list[Lane]) -> list[Piece]:
+    """Each connector's one plan-view piece: its Bezier as an exact ``paramPoly3`` (all
+    converted at once), or the half circle of a U-turn (``lane.plan``) as an ``arc``."""
     curved = [lane for lane in connectors if lane.plan is None]
     beziers = iter(bezier_pieces(np.array([lane.bezier for lane in curved]).reshape(-1, 4, 2)))
-    pieces = [lane.plan[0] if lane.plan is not None else next(beziers) for lane in connectors]
-    polys = iter(_rows(_PARAM_POLY3, [(*p.u, *p.v) for p in pieces if p.kind == "paramPoly3"]))
-    arcs = iter(_rows('<arc curvature="{}"/>', [p.curvature for p in pieces if p.kind == "arc"],
-                      CURVATURE_DECIMALS))
-    return pieces, [next(arcs) if p.kind == "arc" else next(polys) for p in pieces]
+    return [lane.plan[0] if lane.plan is not None else next(beziers) for lane in connectors]
 
 
-def _connector_numbers(connectors: list[Lane], pieces: list[Piece]) -> list[list[str]]:
-    """Per connecting road its length, speed, lane offset (a, b) and width (a, b: linear
-    along s) as written: formatted all at once (see :func:`_rows`)."""
-    width, end_width, speed = np.array([(lane.width, lane.end_width, lane.speed)
-                                        for lane in connectors], float).reshape(-1, 3).T
-    length = np.array([p.length for p in pieces], float)
-    slope = (end_width - width) / length
-    values = np.column_stack([length, speed, width / 2.0, slope / 2.0, width, slope])
-    return [row.split("\t") for row in _rows("\t".join(["{}"] * 6), values)]
-
-
-def _connecting_road(hd: HDMap, lane: Lane, rid: int, jid: int, geometry: str, curve: str,
-                     numbers: list[str]) -> str:
-    """A connector as a one-lane connecting road inside its junction ``jid`` (chapter "Junctions":
-    connecting roads), its ``<geometry>`` and ``<paramPoly3>`` (or ``<arc>``) lines ``geometry``
-    and ``curve`` and its other ``numbers`` (:func:`_connector_numbers`), linked to its incoming
-    and outgoing road and lanes.
-
-    Written as finished text (the most numerous road of a map: building it element by
-    element cost a third of the file's time), its lines after the first placed one two-space
-    indent deep, as the root's children are: no re-indenting of 30k roads when written."""
+def _connecting_road(hd: HDMap, lane: Lane, piece: Piece, rid: int, jid: int) -> etree._Element:
+    """A connector as a one-lane connecting road inside its junction ``jid`` (chapter
+    "Junctions": connecting roads) along ``piece``, linked to its incoming and outgoing road
+    and lanes. Its width changes linearly along it; a lane offset of half the width centres
+    the lane on the reference line."""
     incoming, outgoing = hd.lanes[lane.predecessors[0]], hd.lanes[lane.successors[0]]
-    length, speed, offset_a, offset_b, width, slope = numbers
-    return (
-        f'<road id="{rid}" name="{escape(lane.id)}" junction="{jid}"'
-        f' length="{length}" rule="RHT">\n'
-        f'    <link>\n'
-        f'      <predecessor elementType="road" elementId="{incoming.road}"'
-        f' contactPoint="{_contact(incoming, arriving=True)}"/>\n'
-        f'      <successor elementType="road" elementId="{outgoing.road}"'
-        f' contactPoint="{_contact(outgoing, arriving=False)}"/>\n'
-        f'    </link>\n'
-        f'    <type s="{_ZERO}" type="{ROAD_TYPE}">\n'
-        f'      <speed max="{speed}" unit="m/s"/>\n'
-        f'      {_road_class(lane.road_class)}\n'
-        f'    </type>\n'
-        f'    <planView>\n'
-        f'      {geometry}\n'
-        f'        {curve}\n'
-        f'      </geometry>\n'
-        f'    </planView>\n'
-        f'    <lanes>\n'
-        f'      <laneOffset s="{_ZERO}" a="{offset_a}" b="{offset_b}"'
-        f' c="{_ZERO}" d="{_ZERO}"/>\n'
-        f'      <laneSection s="{_ZERO}">\n'
-        f'        <center>\n'
-        f'          <lane id="0" type="none"/>\n'
-        f'        </center>\n'
-        f'        <right>\n'
-        f'          <lane id="-1" type="driving">\n'
-        f'            <link>\n'
-        f'              <predecessor id="{xodr_lane_id(hd, incoming)}"/>\n'
-        f'              <successor id="{xodr_lane_id(hd, outgoing)}"/>\n'
-        f'            </link>\n'
-        f'            {_width(width, slope)}\n'
-        f'            {_speed(speed)}\n'
-        f'          </lane>\n'
-        f'        </right>\n'
-        f'      </laneSection>\n'
-        f'    </lanes>\n'
-        f'  </road>')
+    elem = _road_element(rid, lane.id, jid, [piece])
+    link = etree.SubElement(elem, "link")
+    _sub(link, "predecessor", elementType="road", elementId=incoming.road,
+         contactPoint=_contact(incoming, arriving=True))
+    _sub(link, "successor", elementType="road", elementId=outgoing.road,
+         contactPoint=_contact(outgoing, arriving=False))
+    _add_type(elem, lane.road_class, lane.speed)
+    _add_plan_view(elem, [piece])
+    width = float(lane.width)
+    slope = (float(lane.end_width) - width) / piece.length
+    lanes = etree.SubElement(elem, "lanes")
+    _sub(lanes, "laneOffset", s=0.0, a=width / 2.0, b=slope / 2.0, c=0.0, d=0.0)
+    section = _sub(lanes, "laneSection", s=0.0)
+    _sub(etree.SubElement(section, "center"), "lane", id=0, type="none")
+    right = _sub(etree.SubElement(section, "right"), "lane", id=-1, type="driving")
+    lane_link = etree.SubElement(right, "link")
+    _sub(lane_link, "predecessor", id=xodr_lane_id(hd, incoming))
+    _sub(lane_link, "successor", id=xodr_lane_id(hd, outgoing))
+    _add_width(right, width, slope)
+    _add_speed(right, float(lane.speed))
+    return elem
 
 
-def _junction(hd: HDMap, node: int, jid: int, connecting: dict[str, int]) -> Element:
+def _junction(hd: HDMap, node: int, jid: int, connecting: dict[str, int]) -> etree._Element:
     """``<junction>`` ``jid`` of node ``node``: one connection per connecting road, from its
     incoming road."""
     junction = hd.junctions[node]
     elem = _elem("junction", id=jid, name=f"n{node}", type="default")
     for k, lane_id in enumerate(junction.connectors):
         incoming = hd.lanes[hd.lanes[lane_id].predecessors[0]]
-        # formatted inline (one connection per connector), as _sub and _leaf would
-        connection = sub(elem, "connection", f' id="{k}" incomingRoad="{incoming.road}"'
-                                             f' connectingRoad="{connecting[lane_id]}"'
-                                             ' contactPoint="start"')
-        connection.children.append(f'<laneLink from="{xodr_lane_id(hd, incoming)}" to="-1"/>')
+        connection = _sub(elem, "connection", id=k, incomingRoad=incoming.road,
+                          connectingRoad=connecting[lane_id], contactPoint="start")
+        etree.SubElement(connection, "laneLink", {"from": str(xodr_lane_id(hd, incoming)),
+                                                  "to": "-1"})
     if junction.type == "traffic_light":
-        _leaf(elem, "controller", id=node, type="0", sequence=0)
+        _sub(elem, "controller", id=node, type="0", sequence=0)
     return elem
 
 
-def _traffic_lights(hd: HDMap, plans: dict[int, list[Piece]]):
+def _traffic_lights(hd: HDMap):
     """Signals per road (dict road id -> ``<signal>`` elements) and one ``<controller>`` per
     traffic-light junction listing them (chapter "Signals": controllers). A signal stands
     right of each road direction arriving at the junction, ``SIGNAL_SETBACK`` before its end,
@@ -382,17 +295,17 @@ def _traffic_lights(hd: HDMap, plans: dict[int, list[Piece]]):
             for direction in DIRECTIONS:
                 if road.ends_at(direction) != jid:
                     continue
-                signals[rid].append(_signal(road, direction, plans[rid], count, jid))
-                _leaf(controller, "control", signalId=count, type="0")
+                signals[rid].append(_signal(road, direction, count, jid))
+                _sub(controller, "control", signalId=count, type="0")
                 count += 1
         controllers.append(controller)
     return signals, controllers
 
 
-def _signal(road: Road, direction: str, pieces: list[Piece], sid: int, jid: int):
+def _signal(road: Road, direction: str, sid: int, jid: int) -> etree._Element:
     """One traffic light for driving direction ``direction`` of ``road`` (orientation ``+``
     faces traffic along the reference line)."""
-    length = sum(p.length for p in pieces)
+    length = sum(p.length for p in road.plan)
     setback = min(SIGNAL_SETBACK, length / 2.0)
     n = len(road.lanes(direction))
     side = -1.0 if direction == "f" else 1.0
@@ -402,5 +315,5 @@ def _signal(road: Road, direction: str, pieces: list[Piece], sid: int, jid: int)
                  orientation="+" if direction == "f" else "-", zOffset=2.0,
                  **SIGNAL_CATALOGUE, height=0.9, width=0.3)
     lanes = (-n, -1) if direction == "f" else (1, n)
-    _leaf(elem, "validity", fromLane=lanes[0], toLane=lanes[1])
+    _sub(elem, "validity", fromLane=lanes[0], toLane=lanes[1])
     return elem

@@ -17,10 +17,10 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
+from lxml import etree
 
 from ..hdmap.model import DIRECTIONS, HDMap, edge_id
 from ..projection import tmerc
-from .xmltext import Element, attr_text, leaf, write
 
 XSI = "http://www.w3.org/2001/XMLSchema-instance"
 NO_LANE_CHANGE = "emergency"  # the classes that may change lanes inside a junction
@@ -45,39 +45,38 @@ def _points(coords) -> list[str]:
     return list(map("%.2f,%.2f".__mod__, map(tuple, xy.tolist())))
 
 
-def _root(tag: str, schema: str) -> Element:
-    return Element(tag, f' xmlns:xsi="{XSI}"'
-                        f' xsi:noNamespaceSchemaLocation="http://sumo.dlr.de/xsd/{schema}"')
+def _root(tag: str, schema: str) -> etree._Element:
+    return etree.Element(tag, {f"{{{XSI}}}noNamespaceSchemaLocation":
+                               f"http://sumo.dlr.de/xsd/{schema}"}, nsmap={"xsi": XSI})
 
 
-def _location(hd: HDMap) -> str:
+def _add_location(root: etree._Element, hd: HDMap) -> None:
     """Geo-reference: a transverse Mercator projection centred on the map's origin (0, 0),
     so SUMO's x/y are our local metres and sumo-gui / sumolib can report lat/lon."""
     lat, lon = hd.geo_origin
     dlat = hd.height / METRES_PER_DEGREE
     dlon = hd.width / (METRES_PER_DEGREE * math.cos(math.radians(lat)))
-    proj = tmerc(hd.geo_origin)
-    return leaf("location", attr_text((
-        ("netOffset", "0.00,0.00"),
-        ("convBoundary", f"0.00,0.00,{_num(hd.width)},{_num(hd.height)}"),
-        ("origBoundary", f"{lon:.6f},{lat:.6f},{lon + dlon:.6f},{lat + dlat:.6f}"),
-        ("projParameter", proj),
-    )))
+    etree.SubElement(root, "location", {
+        "netOffset": "0.00,0.00",
+        "convBoundary": f"0.00,0.00,{_num(hd.width)},{_num(hd.height)}",
+        "origBoundary": f"{lon:.6f},{lat:.6f},{lon + dlon:.6f},{lat + dlat:.6f}",
+        "projParameter": tmerc(hd.geo_origin),
+    })
 
 
-def plain_nodes(hd: HDMap) -> Element:
+def plain_nodes(hd: HDMap) -> etree._Element:
     """``<nodes>``: one node per junction with its control type."""
     root = _root("nodes", "nodes_file.xsd")
     if hd.geo_origin is not None:
-        root.append(_location(hd))
+        _add_location(root, hd)
     for jid in sorted(hd.junctions):
         j = hd.junctions[jid]
-        root.append(leaf("node", attr_text((("id", node_id(jid)), ("x", _num(j.xy[0])),
-                                            ("y", _num(j.xy[1])), ("type", j.type)))))
+        etree.SubElement(root, "node", id=node_id(jid), x=_num(j.xy[0]), y=_num(j.xy[1]),
+                         type=j.type)
     return root
 
 
-def plain_edges(hd: HDMap) -> Element:
+def plain_edges(hd: HDMap) -> etree._Element:
     """``<edges>``: one edge per road direction, shape in driving direction."""
     root = _root("edges", "edges_file.xsd")
     for rid in sorted(hd.roads):
@@ -85,17 +84,17 @@ def plain_edges(hd: HDMap) -> Element:
         points = _points(road.centreline)  # formatted once, for both directions
         for direction in DIRECTIONS:
             line = points if direction == "f" else points[::-1]
-            root.append(leaf("edge", attr_text((
-                ("id", edge_id(rid, direction)),
-                ("from", node_id(road.starts_at(direction))),
-                ("to", node_id(road.ends_at(direction))),
-                ("priority", str(road.priority)),
-                ("numLanes", str(len(road.lanes(direction)))),
-                ("speed", _num(road.speed)),
-                ("width", _num(road.lane_width)),
-                ("spreadType", "right"),
-                ("shape", " ".join(line)),
-            ))))
+            etree.SubElement(root, "edge", {
+                "id": edge_id(rid, direction),
+                "from": node_id(road.starts_at(direction)),
+                "to": node_id(road.ends_at(direction)),
+                "priority": str(road.priority),
+                "numLanes": str(len(road.lanes(direction))),
+                "speed": _num(road.speed),
+                "width": _num(road.lane_width),
+                "spreadType": "right",
+                "shape": " ".join(line),
+            })
     return root
 
 
@@ -111,7 +110,7 @@ def lane_connections(hd: HDMap) -> list[tuple[str, str, int, int]]:
     return sorted(found)
 
 
-def plain_connections(hd: HDMap) -> Element:
+def plain_connections(hd: HDMap) -> etree._Element:
     """``<connections>``: exactly the lane graph's connections; edges without any are declared
     empty so that netconvert does not invent connections for them.
 
@@ -126,12 +125,14 @@ def plain_connections(hd: HDMap) -> Element:
     every_edge = sorted(edge_id(r, d) for r in hd.roads for d in DIRECTIONS)
     for edge in every_edge:
         if edge not in connected:
-            root.append(f'<connection from="{edge}"/>')
+            etree.SubElement(root, "connection", {"from": edge})
     parallel = Counter((src, dst) for src, dst, _, _ in connections)
-    no_change = f' changeLeft="{NO_LANE_CHANGE}" changeRight="{NO_LANE_CHANGE}"'
-    for src, dst, src_lane, dst_lane in connections:  # edge ids and numbers: no escaping
-        root.append(f'<connection from="{src}" to="{dst}" fromLane="{src_lane}"'
-                    f' toLane="{dst_lane}"{no_change if parallel[src, dst] > 1 else ""}/>')
+    for src, dst, src_lane, dst_lane in connections:
+        connection = etree.SubElement(root, "connection", {
+            "from": src, "to": dst, "fromLane": str(src_lane), "toLane": str(dst_lane)})
+        if parallel[src, dst] > 1:
+            connection.set("changeLeft", NO_LANE_CHANGE)
+            connection.set("changeRight", NO_LANE_CHANGE)
     return root
 
 
@@ -145,4 +146,5 @@ def write_plain(hdmap: HDMap, plain_dir: Path) -> None:
     plain_dir = Path(plain_dir)
     plain_dir.mkdir(parents=True, exist_ok=True)
     for name, tree in PLAIN_FILES.items():
-        write(tree(hdmap), plain_dir / name)  # lxml's pretty_print bytes, faster
+        etree.ElementTree(tree(hdmap)).write(plain_dir / name, pretty_print=True,
+                                             xml_declaration=True, encoding="UTF-8")
