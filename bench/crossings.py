@@ -69,11 +69,13 @@ def main() -> None:
     parser.add_argument("--big", action="store_true", help="one 10 km map as well")
     parser.add_argument("--work", type=Path)
     parser.add_argument("--jobs", type=int, default=1, help="maps made at once")
+    parser.add_argument("--skip", type=int, default=0,
+                        help="leave out the first N specs (made by an earlier run)")
     args = parser.parse_args()
     work = args.work or Path(tempfile.mkdtemp(prefix="crossings-"))
     rows = []
     with ThreadPoolExecutor(args.jobs) as pool:  # each map is a make-scenario process
-        for row in pool.map(lambda spec: one_map(spec, work), specs(args.maps, args.big)):
+        for row in pool.map(lambda spec: one_map(spec, work), specs(args.maps, args.big)[args.skip:]):
             rows.append(row)
             print(json.dumps(row), flush=True)
     ok = [r for r in rows if "error" not in r]
