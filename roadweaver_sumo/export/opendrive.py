@@ -27,7 +27,9 @@ Output is deterministic: sorted ids, fixed decimals, fixed header date.
 
 from __future__ import annotations
 
+import itertools
 from collections import defaultdict
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +40,7 @@ from ..hdmap.reference import Piece
 from .opendrive_geometry import DECIMALS, bezier_pieces
 
 CURVATURE_DECIMALS = 15  # an arc's end moves by length^2 / 2 times the curvature's rounding
+INDENT = "  "  # the indent of the written file
 DATE = "2025-01-01T00:00:00"  # fixed, so that two runs write the same bytes
 ROAD_TYPE = "town"  # OpenDRIVE 1.4 road type: known to every reader (see the module docstring)
 MARK_WIDTH = 0.12  # m
@@ -46,33 +49,46 @@ SIGNAL_CATALOGUE = {"country": "DE", "type": "1000001", "subtype": "-1"}  # StVO
 
 
 def write_opendrive(hd: HDMap, path: Path) -> Path:
-    """Write ``hd`` as OpenDRIVE 1.7 to ``path`` (parent folders created); return the path."""
+    """Write ``hd`` as OpenDRIVE 1.7 to ``path`` (parent folders created); return the path.
+
+    Streamed: each child of ``<OpenDRIVE>`` is made, indented and written in turn, never the
+    whole tree at once. A tree of lxml elements holds several times the file's size in
+    memory, and a large map's file runs to hundreds of megabytes."""
+    elements = opendrive_elements(hd)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    etree.ElementTree(opendrive_tree(hd)).write(path, pretty_print=True, xml_declaration=True,
-                                                encoding="UTF-8")
+    with path.open("wb") as file:
+        with etree.xmlfile(file, encoding="UTF-8") as xml:
+            xml.write_declaration()
+            with xml.element("OpenDRIVE"):
+                for element in elements:
+                    etree.indent(element, INDENT, level=1)
+                    xml.write(f"\n{INDENT}", element)
+                xml.write("\n")
+        file.write(b"\n")  # xmlfile writes nothing after the root element
     return path
 
 
-def opendrive_tree(hd: HDMap) -> etree._Element:
-    """The ``<OpenDRIVE>`` element of ``hd``: header, roads, connecting roads, controllers,
-    junctions, in that (schema) order."""
+def opendrive_elements(hd: HDMap) -> Iterator[etree._Element]:
+    """The children of ``<OpenDRIVE>`` of ``hd``: header, roads, connecting roads,
+    controllers, junctions, in that (schema) order.
+
+    Ids, traffic lights and connector geometry are worked out at once, so that errors come
+    before the file is opened; each road and junction element is made only when its turn
+    comes."""
     connecting = connecting_road_ids(hd)
     junctions = junction_ids(hd)
     signals, controllers = _traffic_lights(hd)
-    root = etree.Element("OpenDRIVE")
-    root.append(_header(hd))
-    for rid in sorted(hd.roads):
-        root.append(_road(hd, hd.roads[rid], signals.get(rid, []), junctions))
     connectors = hd.connectors()
-    for lane, piece in zip(connectors, _connector_pieces(connectors), strict=True):
-        root.append(_connecting_road(hd, lane, piece, connecting[lane.id],
-                                     junctions[lane.junction]))
-    root.extend(controllers)
-    for jid in sorted(hd.junctions):
-        if hd.junctions[jid].connectors:
-            root.append(_junction(hd, jid, junctions[jid], connecting))
-    return root
+    return itertools.chain(
+        [_header(hd)],
+        # popped: a signal element kept here would keep its whole road's tree alive
+        (_road(hd, hd.roads[rid], signals.pop(rid, []), junctions) for rid in sorted(hd.roads)),
+        (_connecting_road(hd, lane, piece, connecting[lane.id], junctions[lane.junction])
+         for lane, piece in zip(connectors, _connector_pieces(connectors), strict=True)),
+        controllers,
+        (_junction(hd, jid, junctions[jid], connecting)
+         for jid in sorted(hd.junctions) if hd.junctions[jid].connectors))
 
 
 def connecting_road_ids(hd: HDMap) -> dict[str, int]:

@@ -14,6 +14,7 @@ import numpy as np
 from ..hdmap.reference import Piece
 
 DECIMALS = 9  # fixed decimals of every number written to the .xodr
+CURVES_PER_BATCH = 1024  # curves whose lengths are integrated together
 
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(16)
 
@@ -45,10 +46,18 @@ def parampoly3_length(u: np.ndarray, v: np.ndarray, intervals: int = 32) -> np.n
     """Arc lengths of normalised ``paramPoly3`` curves (coefficient rows a, b, c, d of shape
     (m, 4); p in [0, 1]) by composite 16-point Gauss-Legendre quadrature of their speed:
     within ~1e-12 m of 64 intervals for the connectors of a 6 km map, far below the written
-    1e-9 m (16 intervals: 2e-10 m; 8: 5e-6 m, near-cusp curves converge slowest)."""
+    1e-9 m (16 intervals: 2e-10 m; 8: 5e-6 m, near-cusp curves converge slowest).
+
+    ``CURVES_PER_BATCH`` curves at a time: the speed at every point of every curve at once
+    takes tens of kilobytes a curve, hundreds of megabytes for a large map's connectors."""
     u, v = np.atleast_2d(np.asarray(u, float)), np.atleast_2d(np.asarray(v, float))
     half = 0.5 / intervals
     p = ((np.arange(intervals) + 0.5)[:, None] / intervals + half * _GL_NODES[None]).ravel()
-    du = u[:, 1:2] + 2.0 * u[:, 2:3] * p + 3.0 * u[:, 3:4] * p**2
-    dv = v[:, 1:2] + 2.0 * v[:, 2:3] * p + 3.0 * v[:, 3:4] * p**2
-    return half * (np.hypot(du, dv) @ np.tile(_GL_WEIGHTS, intervals))
+    weights = np.tile(_GL_WEIGHTS, intervals)
+    lengths = np.empty(len(u))
+    for k in range(0, len(u), CURVES_PER_BATCH):
+        bu, bv = u[k:k + CURVES_PER_BATCH], v[k:k + CURVES_PER_BATCH]
+        du = bu[:, 1:2] + 2.0 * bu[:, 2:3] * p + 3.0 * bu[:, 3:4] * p**2
+        dv = bv[:, 1:2] + 2.0 * bv[:, 2:3] * p + 3.0 * bv[:, 3:4] * p**2
+        lengths[k:k + CURVES_PER_BATCH] = half * (np.hypot(du, dv) @ weights)
+    return lengths
