@@ -5,8 +5,8 @@ SUMO's waiting point: the internal junction that netconvert puts where its path 
 foes'. Where two paths meet at a shallow angle (a left turn off a road that bends through the
 junction, or the staggered lane ends of a junction netconvert builds only as wide as its
 narrowest road), that point can lie within a metre of a foe lane's centre line, and the
-waiting car's front is then in the way of the cars it waits for (junction collisions of the
-quality sweeps; ``docs/learned.md``). Such a connection gets ``contPos="0"``: its cars wait at
+waiting car's front is then in the way of the cars it waits for (junction collisions in the
+quality sweeps, ``bench/quality_sweep.py``). Such a connection gets ``contPos="0"``: its cars wait at
 the stop line instead. Only these few connections: moving every left turn's waiting point
 back cost capacity and made left-turners strand at traffic lights.
 """
