@@ -9,7 +9,7 @@ import shapely
 from shapely.geometry import LineString
 
 from roadweaver_sumo.expand import MIN_ANGLE, MIN_EDGE, expand_skeleton
-from roadweaver_sumo.expand.cleanup import departure_angles, point_along
+from roadweaver_sumo.expand.junction_angles import departure_angles, point_along
 from roadweaver_sumo.expand.planar import build_planar_graph
 from roadweaver_sumo.gc_pause import cyclic_gc_paused
 from roadweaver_sumo.metrics import graph_metrics, road_node_count
@@ -312,7 +312,7 @@ def test_a_jog_stays_where_one_corner_would_crowd_another_road():
 def _merged_road(drop_road):
     """Junction 0 at the origin (roads west and north) absorbs node 1 at (6, 5), whose road
     ``drop_road`` runs to node 2; the road 0-2 that the merge leaves."""
-    from roadweaver_sumo.expand.cleanup import merge_nodes
+    from roadweaver_sumo.expand.junction_merge import merge_nodes
     from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
     G = new_road_graph(1000, 1000)
@@ -348,7 +348,8 @@ def test_merging_a_ring_node_keeps_the_ring_on_the_border():
     """A busy junction 11 m inside the map, joined to the perimeter ring by a short road: the
     merged junction stays on the ring. Kept where the busy one was, it bent the ring's roads
     inward across the roads there, and a 10 km map's blocks along the ring stopped closing."""
-    from roadweaver_sumo.expand.cleanup import contract_short_edges, on_perimeter
+    from roadweaver_sumo.expand.junction_merge import contract_short_edges
+    from roadweaver_sumo.expand.perimeter import on_perimeter
     from roadweaver_sumo.skeleton.model import perimeter
 
     inner = [974.0, 500.0]
@@ -595,7 +596,7 @@ def test_junctions_closer_than_the_junction_gap_become_one():
     """Two junctions 15 m apart (each with two more roads) merge into one: SUMO would leave
     a road of a few centimetres between their junction areas, where traffic locks up. A dead
     end 15 m long stays: it joins no second junction."""
-    from roadweaver_sumo.expand.cleanup import MIN_JUNCTION_GAP, contract_short_edges
+    from roadweaver_sumo.expand.junction_merge import MIN_JUNCTION_GAP, contract_short_edges
     from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
     G = new_road_graph(1000.0, 1000.0)
@@ -695,7 +696,8 @@ def test_a_loop_fragment_without_dead_ends_is_linked_too():
 def test_component_filter_keeps_the_ring_over_a_bigger_cluster():
     """Blocks close against the perimeter ring: the filter keeps the ring's component even
     when a cluster of reconnected fragments has more junctions."""
-    from roadweaver_sumo.expand.cleanup import _ring_nodes, keep_largest_component, on_perimeter
+    from roadweaver_sumo.expand.cleanup import keep_largest_component
+    from roadweaver_sumo.expand.perimeter import _ring_nodes, on_perimeter
     from roadweaver_sumo.skeleton.model import perimeter
 
     cluster = [np.array([[400.0 + 50 * k, 300.0], [400.0 + 50 * k, 600.0]]) for k in range(4)]

@@ -28,8 +28,8 @@ from ..metrics import road_node_count
 from ..roadgraph import add_road, edge_coords, edge_length, edge_list
 from ..streamlines import choose_axis, follow_field
 from ..tensor_field import TensorField
-from .cleanup import point_along
 from .edge_index import EdgeIndex
+from .junction_angles import point_along
 from .planar import road_lines
 
 STEP = 20.0  # metres per Euler step of a fill road (locals are short and gently curved)
