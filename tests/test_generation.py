@@ -474,13 +474,14 @@ def test_straight_chord_crosses_a_block_and_stops_at_holes():
     side, ending on the block edge, or on an inner ring where the block has a hole."""
     from shapely.geometry import Polygon
 
-    from roadweaver_sumo.expand.fill import _NodePoints, straight_chord
+    from roadweaver_sumo.expand.chords import straight_chord
+    from roadweaver_sumo.expand.node_points import NodePoints
     from roadweaver_sumo.roadgraph import new_road_graph
 
     G = new_road_graph(1000, 1000)
     for k, corner in enumerate([(0.0, 0.0), (800.0, 0.0), (800.0, 400.0), (0.0, 400.0)]):
         G.add_node(k, xy=corner)
-    nodes = _NodePoints(G)
+    nodes = NodePoints(G)
     block = Polygon([(0, 0), (800, 0), (800, 400), (0, 400)])
     chord = straight_chord(block, nodes, None, None, MIN_EDGE, MIN_ANGLE)
     assert chord is not None
@@ -494,15 +495,18 @@ def test_straight_chord_crosses_a_block_and_stops_at_holes():
 def test_straight_chord_ends_on_a_dead_end_inside_the_block():
     """A dead-end road reaching into the block is a road like any other: the straight fill road
     ends on it instead of crossing it (which insert_chord would refuse)."""
+    from roadweaver_sumo.expand.chord_insert import insert_chord
+    from roadweaver_sumo.expand.chords import straight_chord
     from roadweaver_sumo.expand.edge_index import EdgeIndex
-    from roadweaver_sumo.expand.fill import _NodePoints, faces, insert_chord, straight_chord
+    from roadweaver_sumo.expand.fill import faces
+    from roadweaver_sumo.expand.node_points import NodePoints
 
     ring = np.array([[0, 0], [800, 0], [800, 400], [0, 400], [0, 0]], float)
     dead_end = np.array([[0, 150], [600, 150]], float)
     G = build_planar_graph([(ring, "collector"), (dead_end, "local")], 1000, 1000)
     (block,) = faces(G)
     index = EdgeIndex(G)
-    chord = straight_chord(block, _NodePoints(G), None, None, MIN_EDGE, MIN_ANGLE, roads=index)
+    chord = straight_chord(block, NodePoints(G), None, None, MIN_EDGE, MIN_ANGLE, roads=index)
     assert chord is not None
     assert not LineString(chord).crosses(LineString(dead_end))
     assert insert_chord(G, chord, MIN_EDGE, index) is not None
@@ -513,9 +517,10 @@ def test_fill_counts_road_nodes_as_the_clean_up_leaves_them():
     and the chord's junction with it: the fill counts that end as one road node fewer (the
     dead end), not one more (the junction), and ``stub_loss`` predicts the clean-up's count for the whole
     graph. A chord farther from the end counts as the junction it stays."""
+    from roadweaver_sumo.expand.chord_insert import insert_chord
     from roadweaver_sumo.expand.cleanup import clean
     from roadweaver_sumo.expand.edge_index import EdgeIndex
-    from roadweaver_sumo.expand.fill import counted_change, insert_chord, stub_loss
+    from roadweaver_sumo.expand.fill import counted_change, stub_loss
 
     ring = np.array([[0, 0], [800, 0], [800, 400], [0, 400], [0, 0]], float)
     dead_end = np.array([[0, 150], [600, 150]], float)  # its end at x = 600
@@ -540,8 +545,11 @@ def test_fill_continues_a_side_street_into_a_crossroads():
     road starts at that junction, straight on from the stem, and crosses the block, so the T
     becomes a four-way junction with one new node (the far T). A Y-junction (no straight bar)
     offers no continuation."""
+    from roadweaver_sumo.expand.chord_insert import insert_chord
+    from roadweaver_sumo.expand.chords import continuation_chord
     from roadweaver_sumo.expand.edge_index import EdgeIndex
-    from roadweaver_sumo.expand.fill import _NodePoints, continuation_chord, faces, insert_chord
+    from roadweaver_sumo.expand.fill import faces
+    from roadweaver_sumo.expand.node_points import NodePoints
     from roadweaver_sumo.tensor_field import from_angles
 
     ring = np.array([[0, 0], [800, 0], [800, 800], [0, 800], [0, 0]], float)
@@ -550,7 +558,7 @@ def test_fill_continues_a_side_street_into_a_crossroads():
     G = build_planar_graph([(ring, "collector"), (bar, "local"), (stem, "local")], 800, 800)
     top = max(faces(G), key=lambda f: f.centroid.y)
     field = from_angles(np.full((8, 8), np.pi / 2), np.ones((8, 8)), 100.0)  # north-south
-    nodes, index = _NodePoints(G), EdgeIndex(G)
+    nodes, index = NodePoints(G), EdgeIndex(G)
     chord = continuation_chord(top, nodes, field, None, MIN_EDGE, MIN_ANGLE)
     assert chord is not None
     assert np.allclose(chord[0], [400, 400]) and np.allclose(chord[-1], [400, 800])
@@ -563,7 +571,7 @@ def test_fill_continues_a_side_street_into_a_crossroads():
     y_bar = np.array([[0, 200], [400, 400], [800, 200]], float)  # a 127° bar: not straight
     G = build_planar_graph([(ring, "collector"), (y_bar, "local"), (stem, "local")], 800, 800)
     top = max(faces(G), key=lambda f: f.centroid.y)
-    assert continuation_chord(top, _NodePoints(G), field, None, MIN_EDGE, MIN_ANGLE) is None
+    assert continuation_chord(top, NodePoints(G), field, None, MIN_EDGE, MIN_ANGLE) is None
 
 
 def test_fill_continues_a_side_street_made_after_the_block_was_cut():
@@ -571,8 +579,11 @@ def test_fill_continues_a_side_street_made_after_the_block_was_cut():
     road left on the shared edge is not a vertex of this polygon, and is still continued.
     (Looking only at polygon vertices left learned maps with 5 % four-way junctions, where real
     tiles have 21 %.)"""
+    from roadweaver_sumo.expand.chord_insert import insert_chord
+    from roadweaver_sumo.expand.chords import continuation_chord
     from roadweaver_sumo.expand.edge_index import EdgeIndex
-    from roadweaver_sumo.expand.fill import _NodePoints, continuation_chord, faces, insert_chord
+    from roadweaver_sumo.expand.fill import faces
+    from roadweaver_sumo.expand.node_points import NodePoints
     from roadweaver_sumo.tensor_field import from_angles
 
     ring = np.array([[0, 0], [800, 0], [800, 800], [0, 800], [0, 0]], float)
@@ -580,7 +591,7 @@ def test_fill_continues_a_side_street_made_after_the_block_was_cut():
     G = build_planar_graph([(ring, "collector"), (bar, "local")], 800, 800)
     top = max(faces(G), key=lambda f: f.centroid.y)
     field = from_angles(np.full((8, 8), np.pi / 2), np.ones((8, 8)), 100.0)  # north-south
-    nodes, index = _NodePoints(G), EdgeIndex(G)
+    nodes, index = NodePoints(G), EdgeIndex(G)
     assert continuation_chord(top, nodes, field, None, MIN_EDGE, MIN_ANGLE) is None
 
     side_street = np.array([[300, 0], [300, 200], [300, 400]], float)  # across the lower block
@@ -651,8 +662,10 @@ def test_scattered_chord_splits_a_block_whose_centre_lies_outside_it():
     one arm of the U from edge to edge."""
     from shapely.geometry import Point, Polygon
 
+    from roadweaver_sumo.expand.chords import scattered_chord
     from roadweaver_sumo.expand.edge_index import EdgeIndex
-    from roadweaver_sumo.expand.fill import _NodePoints, faces, scattered_chord
+    from roadweaver_sumo.expand.fill import faces
+    from roadweaver_sumo.expand.node_points import NodePoints
     from roadweaver_sumo.tensor_field import from_angles
 
     ring = np.array([[0, 0], [900, 0], [900, 900], [600, 900], [600, 300], [300, 300],
@@ -661,7 +674,7 @@ def test_scattered_chord_splits_a_block_whose_centre_lies_outside_it():
     (block,) = faces(G)
     assert not block.contains(block.centroid)
     field = from_angles(np.zeros((9, 9)), np.ones((9, 9)), 100.0)  # east-west
-    chord = scattered_chord(block, _NodePoints(G), field, np.random.default_rng(1), MIN_EDGE,
+    chord = scattered_chord(block, NodePoints(G), field, np.random.default_rng(1), MIN_EDGE,
                             MIN_ANGLE, roads=EdgeIndex(G))
     assert chord is not None
     assert Polygon(ring).buffer(1e-6).contains(LineString(chord))
