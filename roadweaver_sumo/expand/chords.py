@@ -37,10 +37,7 @@ def split_chord(face: Polygon, nodes: NodePoints, field: TensorField, rng, min_e
         if not shapely.contains_xy(face, *start):
             continue
         wanted = across if attempt < 4 else along
-        d0 = choose_axis(field, start, wanted)
-        halves = [_trace_in_face(face, start, d, field, roads) for d in (d0, -d0)]
-        met = [line for _, line in filter(None, halves)]
-        chord = _joined(face, nodes, [h and h[0] for h in halves], min_edge, min_angle, met)
+        chord = _field_chord(face, nodes, field, start, wanted, min_edge, min_angle, roads)
         if chord is not None:
             return chord
     return None
@@ -57,14 +54,21 @@ def scattered_chord(face: Polygon, nodes: NodePoints, field: TensorField, rng, m
         start = np.array([rng.uniform(x0, x1), rng.uniform(y0, y1)])
         if not shapely.contains_xy(face, *start):
             continue
-        d0 = choose_axis(field, start, np.array([1.0, 0.0]) if attempt % 2 else
-                         np.array([0.0, 1.0]))
-        halves = [_trace_in_face(face, start, d, field, roads) for d in (d0, -d0)]
-        met = [line for _, line in filter(None, halves)]
-        chord = _joined(face, nodes, [h and h[0] for h in halves], min_edge, min_angle, met)
+        wanted = np.array([1.0, 0.0]) if attempt % 2 else np.array([0.0, 1.0])
+        chord = _field_chord(face, nodes, field, start, wanted, min_edge, min_angle, roads)
         if chord is not None:
             return chord
     return None
+
+
+def _field_chord(face: Polygon, nodes: NodePoints, field: TensorField, start, wanted,
+                 min_edge, min_angle, roads: EdgeIndex | None):
+    """The chord traced from ``start`` both ways along the field's axis closest to ``wanted``
+    (:func:`_joined`), or None."""
+    d0 = choose_axis(field, start, wanted)
+    halves = [_trace_in_face(face, start, d, field, roads) for d in (d0, -d0)]
+    met = [line for _, line in filter(None, halves)]
+    return _joined(face, nodes, [h and h[0] for h in halves], min_edge, min_angle, met)
 
 
 def continuation_chord(face: Polygon, nodes: NodePoints, field: TensorField, rng, min_edge,
