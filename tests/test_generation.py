@@ -726,8 +726,9 @@ def test_component_filter_keeps_the_ring_over_a_bigger_cluster():
 
 def test_point_along_matches_geos_interpolate_bit_for_bit():
     """Clean-up measures junction angles and the fill continues side streets with
-    ``point_along`` instead of a shapely LineString; any difference in the last bit could flip
-    an angle test and change maps."""
+    ``point_along``, from the roads' coordinate arrays (reversed views included); any
+    difference from a LineString's ``interpolate`` in the last bit could flip an angle test
+    and change maps."""
     rng = np.random.default_rng(7)
     for _ in range(3000):
         n = int(rng.integers(2, 8))

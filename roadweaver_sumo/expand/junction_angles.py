@@ -3,8 +3,7 @@
 Where two roads leave a junction closer than the least angle, the minor one goes; at a node
 with only two roads the limit is wider (:data:`HAIRPIN_ANGLE`), since joining them would make a
 hairpin. Angles are measured as bearings a few metres out along each road
-(:func:`departure_angles`), the point found exactly as GEOS's ``interpolate`` finds it
-(:func:`point_along`), so that no last-bit difference flips a test.
+(:func:`departure_angles`), at the point GEOS's ``interpolate`` finds (:func:`point_along`).
 """
 
 from __future__ import annotations
@@ -12,10 +11,9 @@ from __future__ import annotations
 import math
 
 import networkx as nx
-import numba as nb
 import numpy as np
+import shapely
 
-from ..compiled import F8, F8_1D, F8_2D, F8_2D_ANY, I8_1D, compiled
 from ..roadgraph import edge_coords, edge_list
 from .node_sweep import sweep_nodes
 from .perimeter import road_keep_weight
@@ -49,34 +47,12 @@ def departure_angles(G: nx.Graph, n: int, probe: float = 20.0) -> list[tuple[flo
 
 
 def point_along(c: np.ndarray, probe: float) -> tuple[float, float]:
-    """The point ``min(probe, half the length)`` along polyline ``c`` (n x 2), computed as
-    GEOS's ``interpolate`` does, step for step (so the same bits), without building a
-    LineString: clean-up measures tens of thousands of these, hence compiled."""
-    return _point_along_steps(np.asarray(c, dtype=np.float64), float(probe))
-
-
-@compiled(nb.types.UniTuple(F8, 2)(F8_2D_ANY, F8))
-def _point_along_steps(c, probe):
-    total = 0.0
-    for k in range(len(c) - 1):  # GEOS Length::ofLine: a running sum in order
-        total += math.sqrt((c[k + 1, 0] - c[k, 0]) * (c[k + 1, 0] - c[k, 0])
-                           + (c[k + 1, 1] - c[k, 1]) * (c[k + 1, 1] - c[k, 1]))
-    target = min(probe, total * 0.5)
-    if target <= 0.0:
-        return c[0, 0], c[0, 1]
-    done = 0.0
-    for k in range(len(c) - 1):  # GEOS LengthLocationMap::getLocationForward
-        x0, y0, x1, y1 = c[k, 0], c[k, 1], c[k + 1, 0], c[k + 1, 1]
-        step = math.sqrt((x1 - x0) * (x1 - x0) + (y1 - y0) * (y1 - y0))
-        if done + step > target:
-            frac = (target - done) / step
-            if frac <= 0.0:
-                return x0, y0
-            if frac >= 1.0:
-                return x1, y1
-            return (x1 - x0) * frac + x0, (y1 - y0) * frac + y0
-        done += step
-    return c[-1, 0], c[-1, 1]
+    """The point ``min(probe, half the length)`` along polyline ``c`` (n x 2): GEOS's
+    ``interpolate``, the very point a LineString's ``interpolate`` gives."""
+    line = shapely.linestrings(c)
+    at = min(probe, 0.5 * shapely.length(line))
+    x, y = shapely.get_coordinates(shapely.line_interpolate_point(line, at))[0].tolist()
+    return x, y
 
 
 def remove_sharp_angles(G: nx.Graph, min_angle_deg: float) -> None:
@@ -106,59 +82,48 @@ def remove_sharp_angles(G: nx.Graph, min_angle_deg: float) -> None:
 
 
 def _maybe_sharp_nodes(G: nx.Graph, limit: float, hairpin: float) -> list:
-    """The nodes that may have a pair of roads for
-    :func:`_sharp_pair_road` to drop: every road's bearings at both ends measured in one
-    compiled pass (the same steps as :func:`departure_angles`, compared with a margin, so a
-    node can only be looked at needlessly)."""
+    """The nodes that may have a pair of roads for :func:`_sharp_pair_road` to drop: every
+    road's bearings at both ends measured in one vectorised pass (GEOS's ``interpolate`` as in
+    :func:`departure_angles`, numpy's ``arctan2``; compared with a margin, so a node can only
+    be looked at needlessly)."""
     edges = edge_list(G)
     if not edges:
         return []
-    coords = [data["coords"] for _, _, data in edges]
-    offsets = np.r_[0, np.cumsum([len(c) for c in coords])]
-    points = np.ascontiguousarray(np.concatenate(coords), dtype=np.float64)
+    points = np.concatenate([data["coords"] for _, _, data in edges])
+    sizes = np.array([len(data["coords"]) for _, _, data in edges])
+    roads = shapely.linestrings(points, indices=np.repeat(np.arange(len(edges)), sizes))
+    ways = np.concatenate([roads, shapely.reverse(roads)])  # from each road's start, then its end
+    last = np.cumsum(sizes) - 1
+    ends = points[np.r_[last - sizes + 1, last]]
     starts = [data["start"] for _, _, data in edges]
     node = np.array(starts + [v if s == u else u for (u, v, _), s in zip(edges, starts,
                                                                          strict=True)])
-    order = np.argsort(node, kind="stable")
-    head = np.flatnonzero(np.r_[True, node[order][1:] != node[order][:-1]])
-    bounds = np.r_[head, len(node)]
-    wide, near = (_tightest(bounds, np.concatenate(_departures(points, offsets, probe))[order])
+    half = 0.5 * shapely.length(ways)
+    wide, near = (_tightest(node, _bearings(ways, ends, np.minimum(probe, half)))
                   for probe in (HAIRPIN_PROBES[1], HAIRPIN_PROBES[0]))
-    degree = np.diff(bounds)
+    nodes, degree = np.unique(node, return_counts=True)
     margin = 1e-9
     sharp = ((degree >= 3) & (wide < limit + margin)) | (
         (degree == 2) & (np.minimum(wide, near) < hairpin + margin))
-    return node[order[head[sharp]]].tolist()
+    return nodes[sharp].tolist()
 
 
-@compiled(F8_1D(I8_1D, F8_1D))
-def _tightest(bounds, bearing):
-    """Per node (its roads' bearings ``bearing[bounds[k]:bounds[k + 1]]``), the smallest
-    angle from one road to the next round it (2π at a dead end)."""
-    out = np.empty(len(bounds) - 1)
-    for k in range(len(bounds) - 1):
-        b = np.sort(bearing[bounds[k]:bounds[k + 1]])
-        tightest = b[0] - b[-1] + 2 * math.pi
-        for i in range(len(b) - 1):
-            tightest = min(tightest, b[i + 1] - b[i])
-        out[k] = tightest
-    return out
+def _bearings(ways: np.ndarray, ends: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """The bearing from each of ``ends`` to the point ``at`` metres along its line in ``ways``."""
+    q = shapely.get_coordinates(shapely.line_interpolate_point(ways, at))
+    return np.arctan2(q[:, 1] - ends[:, 1], q[:, 0] - ends[:, 0])
 
 
-@compiled(nb.types.UniTuple(F8_1D, 2)(F8_2D, I8_1D, F8))
-def _departures(points, offsets, probe):
-    """The bearing of every road (``points[offsets[k]:offsets[k + 1]]``) ``probe`` metres out
-    from its first point, and from its last point, as :func:`departure_angles` measures."""
-    n = len(offsets) - 1
-    ahead, back = np.empty(n), np.empty(n)
-    for k in range(n):
-        c = points[offsets[k]:offsets[k + 1]]
-        qx, qy = _point_along_steps(c, probe)
-        ahead[k] = math.atan2(qy - c[0, 1], qx - c[0, 0])
-        r = c[::-1]
-        qx, qy = _point_along_steps(r, probe)
-        back[k] = math.atan2(qy - r[0, 1], qx - r[0, 0])
-    return ahead, back
+def _tightest(node: np.ndarray, bearing: np.ndarray) -> np.ndarray:
+    """Per node (in increasing id), the smallest angle from one of its roads (``bearing`` where
+    ``node`` is it) to the next round it (2π at a dead end)."""
+    order = np.lexsort((bearing, node))
+    node, bearing = node[order], bearing[order]
+    head = np.flatnonzero(np.r_[True, node[1:] != node[:-1]])
+    tail = np.r_[head[1:], len(node)] - 1
+    gap = np.r_[np.diff(bearing), np.inf]
+    gap[tail] = np.inf  # from a node's last road to the next node's first: no gap
+    return np.minimum(bearing[head] - bearing[tail] + 2 * math.pi, np.minimum.reduceat(gap, head))
 
 
 def _sharp_pair_road(G: nx.Graph, n: int, limit: float, hairpin: float) -> tuple | None:
