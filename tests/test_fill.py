@@ -5,15 +5,11 @@ import shapely
 from shapely.geometry import LineString, Polygon
 
 from roadweaver_sumo.expand import MIN_EDGE
+from roadweaver_sumo.expand.block_split import _joined_roads, _off_ring, split_face
+from roadweaver_sumo.expand.chord_insert import insert_chord
 from roadweaver_sumo.expand.edge_index import EdgeIndex
-from roadweaver_sumo.expand.fill import (
-    _joined_roads,
-    _NodePoints,
-    _off_ring,
-    _split_face,
-    faces,
-    insert_chord,
-)
+from roadweaver_sumo.expand.fill import faces
+from roadweaver_sumo.expand.node_points import NodePoints
 from roadweaver_sumo.expand.planar import build_planar_graph
 from roadweaver_sumo.roadgraph import new_road_graph
 
@@ -47,7 +43,7 @@ def test_split_face_with_a_dead_end_matches_noding_every_road():
     chord = np.array([[300.0, 150.0], [300.0, 275.0], [300.0, 400.0]])
     ends = insert_chord(G, chord, MIN_EDGE, index)
     assert ends is not None
-    parts = _split_face(block, chord, ends, index)
+    parts = split_face(block, chord, ends, index)
     assert len(parts) == 2
     everything = [index.lines[key] for key in index.near(block, 0.0)]
     noded = shapely.union_all([block.exterior, *block.interiors, *everything])
@@ -80,7 +76,7 @@ def test_nodes_near_a_long_ring_are_found_as_by_measuring_every_one():
     G = new_road_graph(3000, 3000)
     for n, xy in enumerate(pts[:500]):
         G.add_node(n, xy=(float(xy[0]), float(xy[1])))
-    nodes = _NodePoints(G)
+    nodes = NodePoints(G)
     for n, xy in enumerate(pts[500:], start=500):
         G.add_node(n, xy=(float(xy[0]), float(xy[1])))
     nodes.update()

@@ -9,7 +9,7 @@ import shapely
 from shapely.geometry import LineString
 
 from roadweaver_sumo.expand import MIN_ANGLE, MIN_EDGE, expand_skeleton
-from roadweaver_sumo.expand.cleanup import departure_angles, point_along
+from roadweaver_sumo.expand.junction_angles import departure_angles, point_along
 from roadweaver_sumo.expand.planar import build_planar_graph
 from roadweaver_sumo.gc_pause import cyclic_gc_paused
 from roadweaver_sumo.metrics import graph_metrics, road_node_count
@@ -312,7 +312,7 @@ def test_a_jog_stays_where_one_corner_would_crowd_another_road():
 def _merged_road(drop_road):
     """Junction 0 at the origin (roads west and north) absorbs node 1 at (6, 5), whose road
     ``drop_road`` runs to node 2; the road 0-2 that the merge leaves."""
-    from roadweaver_sumo.expand.cleanup import merge_nodes
+    from roadweaver_sumo.expand.junction_merge import merge_nodes
     from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
     G = new_road_graph(1000, 1000)
@@ -348,7 +348,8 @@ def test_merging_a_ring_node_keeps_the_ring_on_the_border():
     """A busy junction 11 m inside the map, joined to the perimeter ring by a short road: the
     merged junction stays on the ring. Kept where the busy one was, it bent the ring's roads
     inward across the roads there, and a 10 km map's blocks along the ring stopped closing."""
-    from roadweaver_sumo.expand.cleanup import contract_short_edges, on_perimeter
+    from roadweaver_sumo.expand.junction_merge import contract_short_edges
+    from roadweaver_sumo.expand.perimeter import on_perimeter
     from roadweaver_sumo.skeleton.model import perimeter
 
     inner = [974.0, 500.0]
@@ -473,13 +474,14 @@ def test_straight_chord_crosses_a_block_and_stops_at_holes():
     side, ending on the block edge, or on an inner ring where the block has a hole."""
     from shapely.geometry import Polygon
 
-    from roadweaver_sumo.expand.fill import _NodePoints, straight_chord
+    from roadweaver_sumo.expand.chords import straight_chord
+    from roadweaver_sumo.expand.node_points import NodePoints
     from roadweaver_sumo.roadgraph import new_road_graph
 
     G = new_road_graph(1000, 1000)
     for k, corner in enumerate([(0.0, 0.0), (800.0, 0.0), (800.0, 400.0), (0.0, 400.0)]):
         G.add_node(k, xy=corner)
-    nodes = _NodePoints(G)
+    nodes = NodePoints(G)
     block = Polygon([(0, 0), (800, 0), (800, 400), (0, 400)])
     chord = straight_chord(block, nodes, None, None, MIN_EDGE, MIN_ANGLE)
     assert chord is not None
@@ -493,15 +495,18 @@ def test_straight_chord_crosses_a_block_and_stops_at_holes():
 def test_straight_chord_ends_on_a_dead_end_inside_the_block():
     """A dead-end road reaching into the block is a road like any other: the straight fill road
     ends on it instead of crossing it (which insert_chord would refuse)."""
+    from roadweaver_sumo.expand.chord_insert import insert_chord
+    from roadweaver_sumo.expand.chords import straight_chord
     from roadweaver_sumo.expand.edge_index import EdgeIndex
-    from roadweaver_sumo.expand.fill import _NodePoints, faces, insert_chord, straight_chord
+    from roadweaver_sumo.expand.fill import faces
+    from roadweaver_sumo.expand.node_points import NodePoints
 
     ring = np.array([[0, 0], [800, 0], [800, 400], [0, 400], [0, 0]], float)
     dead_end = np.array([[0, 150], [600, 150]], float)
     G = build_planar_graph([(ring, "collector"), (dead_end, "local")], 1000, 1000)
     (block,) = faces(G)
     index = EdgeIndex(G)
-    chord = straight_chord(block, _NodePoints(G), None, None, MIN_EDGE, MIN_ANGLE, roads=index)
+    chord = straight_chord(block, NodePoints(G), None, None, MIN_EDGE, MIN_ANGLE, roads=index)
     assert chord is not None
     assert not LineString(chord).crosses(LineString(dead_end))
     assert insert_chord(G, chord, MIN_EDGE, index) is not None
@@ -512,9 +517,10 @@ def test_fill_counts_road_nodes_as_the_clean_up_leaves_them():
     and the chord's junction with it: the fill counts that end as one road node fewer (the
     dead end), not one more (the junction), and ``stub_loss`` predicts the clean-up's count for the whole
     graph. A chord farther from the end counts as the junction it stays."""
+    from roadweaver_sumo.expand.chord_insert import insert_chord
     from roadweaver_sumo.expand.cleanup import clean
     from roadweaver_sumo.expand.edge_index import EdgeIndex
-    from roadweaver_sumo.expand.fill import counted_change, insert_chord, stub_loss
+    from roadweaver_sumo.expand.fill import counted_change, stub_loss
 
     ring = np.array([[0, 0], [800, 0], [800, 400], [0, 400], [0, 0]], float)
     dead_end = np.array([[0, 150], [600, 150]], float)  # its end at x = 600
@@ -539,8 +545,11 @@ def test_fill_continues_a_side_street_into_a_crossroads():
     road starts at that junction, straight on from the stem, and crosses the block, so the T
     becomes a four-way junction with one new node (the far T). A Y-junction (no straight bar)
     offers no continuation."""
+    from roadweaver_sumo.expand.chord_insert import insert_chord
+    from roadweaver_sumo.expand.chords import continuation_chord
     from roadweaver_sumo.expand.edge_index import EdgeIndex
-    from roadweaver_sumo.expand.fill import _NodePoints, continuation_chord, faces, insert_chord
+    from roadweaver_sumo.expand.fill import faces
+    from roadweaver_sumo.expand.node_points import NodePoints
     from roadweaver_sumo.tensor_field import from_angles
 
     ring = np.array([[0, 0], [800, 0], [800, 800], [0, 800], [0, 0]], float)
@@ -549,7 +558,7 @@ def test_fill_continues_a_side_street_into_a_crossroads():
     G = build_planar_graph([(ring, "collector"), (bar, "local"), (stem, "local")], 800, 800)
     top = max(faces(G), key=lambda f: f.centroid.y)
     field = from_angles(np.full((8, 8), np.pi / 2), np.ones((8, 8)), 100.0)  # north-south
-    nodes, index = _NodePoints(G), EdgeIndex(G)
+    nodes, index = NodePoints(G), EdgeIndex(G)
     chord = continuation_chord(top, nodes, field, None, MIN_EDGE, MIN_ANGLE)
     assert chord is not None
     assert np.allclose(chord[0], [400, 400]) and np.allclose(chord[-1], [400, 800])
@@ -562,7 +571,7 @@ def test_fill_continues_a_side_street_into_a_crossroads():
     y_bar = np.array([[0, 200], [400, 400], [800, 200]], float)  # a 127° bar: not straight
     G = build_planar_graph([(ring, "collector"), (y_bar, "local"), (stem, "local")], 800, 800)
     top = max(faces(G), key=lambda f: f.centroid.y)
-    assert continuation_chord(top, _NodePoints(G), field, None, MIN_EDGE, MIN_ANGLE) is None
+    assert continuation_chord(top, NodePoints(G), field, None, MIN_EDGE, MIN_ANGLE) is None
 
 
 def test_fill_continues_a_side_street_made_after_the_block_was_cut():
@@ -570,8 +579,11 @@ def test_fill_continues_a_side_street_made_after_the_block_was_cut():
     road left on the shared edge is not a vertex of this polygon, and is still continued.
     (Looking only at polygon vertices left learned maps with 5 % four-way junctions, where real
     tiles have 21 %.)"""
+    from roadweaver_sumo.expand.chord_insert import insert_chord
+    from roadweaver_sumo.expand.chords import continuation_chord
     from roadweaver_sumo.expand.edge_index import EdgeIndex
-    from roadweaver_sumo.expand.fill import _NodePoints, continuation_chord, faces, insert_chord
+    from roadweaver_sumo.expand.fill import faces
+    from roadweaver_sumo.expand.node_points import NodePoints
     from roadweaver_sumo.tensor_field import from_angles
 
     ring = np.array([[0, 0], [800, 0], [800, 800], [0, 800], [0, 0]], float)
@@ -579,7 +591,7 @@ def test_fill_continues_a_side_street_made_after_the_block_was_cut():
     G = build_planar_graph([(ring, "collector"), (bar, "local")], 800, 800)
     top = max(faces(G), key=lambda f: f.centroid.y)
     field = from_angles(np.full((8, 8), np.pi / 2), np.ones((8, 8)), 100.0)  # north-south
-    nodes, index = _NodePoints(G), EdgeIndex(G)
+    nodes, index = NodePoints(G), EdgeIndex(G)
     assert continuation_chord(top, nodes, field, None, MIN_EDGE, MIN_ANGLE) is None
 
     side_street = np.array([[300, 0], [300, 200], [300, 400]], float)  # across the lower block
@@ -595,7 +607,7 @@ def test_junctions_closer_than_the_junction_gap_become_one():
     """Two junctions 15 m apart (each with two more roads) merge into one: SUMO would leave
     a road of a few centimetres between their junction areas, where traffic locks up. A dead
     end 15 m long stays: it joins no second junction."""
-    from roadweaver_sumo.expand.cleanup import MIN_JUNCTION_GAP, contract_short_edges
+    from roadweaver_sumo.expand.junction_merge import MIN_JUNCTION_GAP, contract_short_edges
     from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
     G = new_road_graph(1000.0, 1000.0)
@@ -650,8 +662,10 @@ def test_scattered_chord_splits_a_block_whose_centre_lies_outside_it():
     one arm of the U from edge to edge."""
     from shapely.geometry import Point, Polygon
 
+    from roadweaver_sumo.expand.chords import scattered_chord
     from roadweaver_sumo.expand.edge_index import EdgeIndex
-    from roadweaver_sumo.expand.fill import _NodePoints, faces, scattered_chord
+    from roadweaver_sumo.expand.fill import faces
+    from roadweaver_sumo.expand.node_points import NodePoints
     from roadweaver_sumo.tensor_field import from_angles
 
     ring = np.array([[0, 0], [900, 0], [900, 900], [600, 900], [600, 300], [300, 300],
@@ -660,7 +674,7 @@ def test_scattered_chord_splits_a_block_whose_centre_lies_outside_it():
     (block,) = faces(G)
     assert not block.contains(block.centroid)
     field = from_angles(np.zeros((9, 9)), np.ones((9, 9)), 100.0)  # east-west
-    chord = scattered_chord(block, _NodePoints(G), field, np.random.default_rng(1), MIN_EDGE,
+    chord = scattered_chord(block, NodePoints(G), field, np.random.default_rng(1), MIN_EDGE,
                             MIN_ANGLE, roads=EdgeIndex(G))
     assert chord is not None
     assert Polygon(ring).buffer(1e-6).contains(LineString(chord))
@@ -695,7 +709,8 @@ def test_a_loop_fragment_without_dead_ends_is_linked_too():
 def test_component_filter_keeps_the_ring_over_a_bigger_cluster():
     """Blocks close against the perimeter ring: the filter keeps the ring's component even
     when a cluster of reconnected fragments has more junctions."""
-    from roadweaver_sumo.expand.cleanup import _ring_nodes, keep_largest_component, on_perimeter
+    from roadweaver_sumo.expand.cleanup import keep_largest_component
+    from roadweaver_sumo.expand.perimeter import _ring_nodes, on_perimeter
     from roadweaver_sumo.skeleton.model import perimeter
 
     cluster = [np.array([[400.0 + 50 * k, 300.0], [400.0 + 50 * k, 600.0]]) for k in range(4)]
@@ -711,8 +726,9 @@ def test_component_filter_keeps_the_ring_over_a_bigger_cluster():
 
 def test_point_along_matches_geos_interpolate_bit_for_bit():
     """Clean-up measures junction angles and the fill continues side streets with
-    ``point_along`` instead of a shapely LineString; any difference in the last bit could flip
-    an angle test and change maps."""
+    ``point_along``, from the roads' coordinate arrays (reversed views included); any
+    difference from a LineString's ``interpolate`` in the last bit could flip an angle test
+    and change maps."""
     rng = np.random.default_rng(7)
     for _ in range(3000):
         n = int(rng.integers(2, 8))

@@ -16,7 +16,7 @@ from skimage.graph import MCP_Geometric
 
 from ..raster import polyline_cells_each, rasterise_polylines, rasterise_window
 from ..roadgraph import sorted_edge_list
-from .cleanup import components_main_first
+from .perimeter import components_main_first
 from .planar import road_lines
 
 
