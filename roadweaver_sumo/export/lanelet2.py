@@ -29,9 +29,9 @@ import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from xml.sax.saxutils import escape
 
 import numpy as np
-from lxml import etree
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
@@ -225,74 +225,72 @@ def speed_limit_tag(speed_mps: float) -> str:
     return f"{round(speed_mps * 3.6, 2):g}"
 
 
-def _osm_element(tag: str, eid: int, **attrs: str) -> etree._Element:
-    """A node, way or relation with OSM's id attributes (JOSM's style)."""
-    return etree.Element(tag, id=str(eid), visible="true", version="1", **attrs)
+def _attr(value: str) -> str:
+    """An attribute value as XML text (lane ids are the only values not made here)."""
+    return escape(value, {'"': "&quot;"})
 
 
-def _add_tags(element: etree._Element, tags) -> None:
-    for key, value in tags:
-        etree.SubElement(element, "tag", k=key, v=value)
+def _open(tag: str, eid: int, attrs: str = "", children: bool = True) -> str:
+    """The start of a node, way or relation with OSM's id attributes (JOSM's style)."""
+    return f'{INDENT}<{tag} id="{eid}" visible="true" version="1"{attrs}{">" if children else "/>"}'
 
 
-def _add_member(relation: etree._Element, kind: str, ref: int, role: str) -> None:
-    etree.SubElement(relation, "member", type=kind, ref=str(ref), role=role)
+def _tag_lines(tags) -> list[str]:
+    return [f'{INDENT * 2}<tag k="{_attr(key)}" v="{_attr(value)}"/>' for key, value in tags]
 
 
-def _way(wid: int, nodes, tags: tuple) -> etree._Element:
-    way = _osm_element("way", wid)
-    for node in nodes:
-        etree.SubElement(way, "nd", ref=str(node))
-    _add_tags(way, tags)
-    return way
+def _member(kind: str, ref: int, role: str) -> str:
+    return f'{INDENT * 2}<member type="{kind}" ref="{ref}" role="{role}"/>'
 
 
-def _traffic_light(signal: _Signal) -> etree._Element:
+def _way(wid: int, nodes, tags: tuple) -> str:
+    return "\n".join([_open("way", wid), *(f'{INDENT * 2}<nd ref="{node}"/>' for node in nodes),
+                      *_tag_lines(tags), f"{INDENT}</way>"])
+
+
+def _traffic_light(signal: _Signal) -> str:
     """The traffic light regulatory element of one approach."""
-    relation = _osm_element("relation", signal.id)
-    _add_member(relation, "way", signal.light, "refers")
-    _add_member(relation, "way", signal.stop_line, "ref_line")
-    _add_tags(relation, (("type", "regulatory_element"), ("subtype", "traffic_light")))
-    return relation
+    return "\n".join([_open("relation", signal.id), _member("way", signal.light, "refers"),
+                      _member("way", signal.stop_line, "ref_line"),
+                      *_tag_lines((("type", "regulatory_element"), ("subtype", "traffic_light"))),
+                      f"{INDENT}</relation>"])
 
 
-def _lanelet(rid: int, lane: Lane, left: int, right: int, regulatory: int | None) -> etree._Element:
+def _lanelet(rid: int, lane: Lane, left: int, right: int, regulatory: int | None) -> str:
     """A lane's lanelet relation: its bounds, its traffic light if any, its speed limit and its
     own id."""
-    relation = _osm_element("relation", rid)
-    _add_member(relation, "way", left, "left")
-    _add_member(relation, "way", right, "right")
+    members = [_member("way", left, "left"), _member("way", right, "right")]
     if regulatory is not None:
-        _add_member(relation, "relation", regulatory, "regulatory_element")
-    _add_tags(relation, (("type", "lanelet"), ("subtype", "road"), ("location", "urban"),
-                         ("one_way", "yes"), ("speed_limit", speed_limit_tag(lane.speed)),
-                         (LANE_TAG, lane.id)))
-    return relation
+        members.append(_member("relation", regulatory, "regulatory_element"))
+    tags = (("type", "lanelet"), ("subtype", "road"), ("location", "urban"), ("one_way", "yes"),
+            ("speed_limit", speed_limit_tag(lane.speed)), (LANE_TAG, lane.id))
+    return "\n".join([_open("relation", rid), *members, *_tag_lines(tags), f"{INDENT}</relation>"])
 
 
 def _degrees(value: float) -> str:
     return f"{value:.{DEGREE_DECIMALS}f}"
 
 
-def _bounds(hd: HDMap) -> etree._Element:
+def _bounds(hd: HDMap) -> str:
     lat, lon = local_to_latlon([0.0, hd.width, 0.0, hd.width], [0.0, 0.0, hd.height, hd.height],
                                hd.geo_origin)
-    return etree.Element("bounds", minlat=_degrees(lat.min()), minlon=_degrees(lon.min()),
-                         maxlat=_degrees(lat.max()), maxlon=_degrees(lon.max()))
+    return (f'{INDENT}<bounds minlat="{_degrees(lat.min())}" minlon="{_degrees(lon.min())}" '
+            f'maxlat="{_degrees(lat.max())}" maxlon="{_degrees(lon.max())}"/>')
 
 
-def _nodes(hd: HDMap, ids: _Ids) -> Iterator[etree._Element]:
+def _nodes(hd: HDMap, ids: _Ids) -> Iterator[str]:
     node_ids, xy = ids.all_nodes()
     lat, lon = local_to_latlon(xy[:, 0], xy[:, 1], hd.geo_origin)
     for nid, node_lat, node_lon in zip(node_ids.tolist(), lat.tolist(), lon.tolist(),
                                        strict=True):
-        yield _osm_element("node", nid, lat=_degrees(node_lat), lon=_degrees(node_lon))
+        yield _open("node", nid, f' lat="{_degrees(node_lat)}" lon="{_degrees(node_lon)}"', False)
 
 
-def osm_elements(hd: HDMap) -> Iterator[etree._Element]:
-    """The children of ``hd``'s ``<osm>`` element in lanelet2 format (see the module docstring),
-    in file order: bounds, nodes, ways, relations, each in id order. Ids are all given before
-    the first element is made; the elements are made one at a time, as they are asked for."""
+def osm_elements(hd: HDMap) -> Iterator[str]:
+    """The children of ``hd``'s ``<osm>`` element in lanelet2 format (see the module docstring)
+    as indented XML text, in file order: bounds, nodes, ways, relations, each in id order. Ids
+    are all given before the first element is made; the elements are made one at a time, as
+    they are asked for."""
     if hd.geo_origin is None:
         raise ValueError("the HD map has no geo_origin; lanelet2 files need lat/lon")
     ids = _Ids()
@@ -319,19 +317,16 @@ def write_lanelet2(hd: HDMap, path: Path) -> Path:
     """Write ``hd`` as a lanelet2-format OSM file (parent folders created) and return its
     path.
 
-    Streamed: each child of ``<osm>`` is made, indented and written in turn, never the whole
-    tree at once. The file holds every boundary point of the map as a node, and a tree of
-    lxml elements holds several times the file's size in memory."""
+    Written as text, element by element: an OSM file is a flat list of nodes, ways and
+    relations of a few fixed attributes, one line each or a few, and every boundary point of
+    the map is a node (665,000 on a 10 km map), more than an element tree is worth building."""
     elements = osm_elements(hd)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("wb") as file:
-        file.write(DECLARATION.encode())  # double-quoted as in scenario files; lxml's has '
-        with (etree.xmlfile(file, encoding="UTF-8") as xml,
-              xml.element("osm", version="0.6", generator=GENERATOR)):
-            for element in elements:
-                etree.indent(element, INDENT, level=1)
-                xml.write(f"\n{INDENT}", element)
-            xml.write("\n")
-        file.write(b"\n")
+    with path.open("w", encoding="utf-8") as file:
+        file.write(DECLARATION)
+        file.write(f'<osm version="0.6" generator="{GENERATOR}">\n')
+        for element in elements:
+            file.write(element + "\n")
+        file.write("</osm>\n")
     return path
