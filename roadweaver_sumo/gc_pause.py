@@ -2,11 +2,10 @@
 
 Generating a map and reading a SUMO net back with sumolib both allocate millions of small
 objects that live to the end (graph attributes, polylines, lanes; sumolib's edges, lanes and
-connections). The collector, triggered by allocation counts, walks all of them again and again:
-about 10 % of a 10 km map's generation, and half of the time sumolib takes to read its net
-(3.2 -> 1.5 s at 10 km). These steps make almost no reference cycles that matter (peak memory
-of a 10 km map +1.4 %); reference counting frees everything else as before, and the collector
-catches any cycles once it runs again.
+connections). The collector, triggered by allocation counts, walks all of them again and again,
+a large share of the time these steps take on a large map. They make almost no reference cycles
+that matter; reference counting frees everything else as before, and the collector catches any
+cycles once it runs again.
 """
 
 from __future__ import annotations
