@@ -63,6 +63,8 @@ def make_scenario(
         generation = build_scenario_files(spec, tmp, stages, log)
         timing: dict = {"stages_s": stages}
         drawing = None
+        from .validate.report import write_report
+
         if validate:
             with stage("validating: net metrics, libsumo run and routing tasks", "validate"):
                 from .render import net_drawing
@@ -77,12 +79,8 @@ def make_scenario(
                     tmp, net_figures=loaded_net_metrics(net, spec.area_km2),
                     split_routing=not cores_busy)
                 del net
-            from .validate.report import write_report
-
             write_report(tmp, report | {"generation": generation})
         else:
-            from .validate.report import write_report
-
             write_report(tmp, {"generation": generation, "validated": False})
         with stage("preview", "preview"):  # after the report: it shows the edge flows
             from .render import render_preview

@@ -50,12 +50,12 @@ def build_hdmap(
     banned: set[tuple[str, str]] = set()
     folds = folding_turns(hd.connectors())
     for _ in range(BAN_ROUNDS):
-        new = {(lane.predecessors[0], lane.successors[0]) for lane in folds} - banned
+        new = {(lane.predecessors[0], lane.successors[0]): lane.junction for lane in folds}
+        new = {pair: node for pair, node in new.items() if pair not in banned}
         if not new:
             break
-        banned |= new
-        nodes = {lane.junction for lane in folds if (lane.predecessors[0], lane.successors[0]) in new}
-        folds = _lanes_and_connectors(hd, [], sorted(nodes), banned)
+        banned |= new.keys()
+        folds = _lanes_and_connectors(hd, [], sorted(set(new.values())), banned)
     add_successor_links(hd)  # AddSuccessorLinks
     repair_topology(hd)  # RepairTopology
     return hd
