@@ -9,7 +9,14 @@ import numpy as np
 import pytest
 import shapely
 
-from roadweaver_sumo.hdmap.lanes import LANE_CONFIGS, MIN_TURN_RADIUS
+from roadweaver_sumo.hdmap.lanes import (
+    LANE_CONFIGS,
+    MAX_TRIM_SHARE,
+    MIN_SECTION_SHARE,
+    MIN_TURN_RADIUS,
+    plan_reference_lines,
+)
+from roadweaver_sumo.hdmap.model import Road
 from roadweaver_sumo.hdmap.reference import END_LINE, MAX_DEVIATION, fillet_plans, plan_points
 
 
@@ -106,3 +113,26 @@ def test_lanes_offset_from_a_sampled_plan_never_fold():
         normal = np.column_stack([-tangents[:, 1], tangents[:, 0]])
         outline = np.vstack([points + half * normal, (points - half * normal)[::-1]])
         assert shapely.Polygon(outline).is_valid
+
+
+def test_a_short_road_bending_next_to_its_junction_leaves_the_bend_to_the_junction():
+    """A 34 m collector (learned grid 2.5 km d99 s5192, road 170): 9 m out of its junction it
+    turns a quarter turn on a 6 m curve of 1 m steps, then runs 14 m to the next junction. The
+    junction trim cuts into the curve; what is left of it fits no 5 m arc within the first
+    ``END_BEND``, and a lane section that started there read to netconvert as a sharp turn of
+    8.55 m. The lane section starts past the bend, even beyond the trims' usual cap, and
+    keeps a fifth of the road."""
+    line = np.array([(418.14, 2148.25), (415.9, 2139.76), (415.64, 2138.56), (415.53, 2137.48),
+                     (415.56, 2136.53), (415.75, 2135.7), (416.09, 2134.99), (416.57, 2134.41),
+                     (417.2, 2133.95), (417.99, 2133.62), (418.92, 2133.41), (420.0, 2133.32),
+                     (421.23, 2133.36), (435.04, 2134.41)])
+    cfg = LANE_CONFIGS["collector"]
+    road = Road(id=0, from_node=0, to_node=1, centreline=line, road_class="collector",
+                priority=cfg.priority, speed=cfg.speed, lane_width=cfg.width, sections=[])
+    plan_reference_lines([road], [(6.09, 4.59)])
+    length = float(np.hypot(*np.diff(line, axis=0).T).sum())
+    (section,) = road.sections
+    radii = [1.0 / abs(p.curvature) for p in road.plan if p.kind == "arc"]
+    assert min(radii, default=math.inf) >= cfg.min_radius - 1e-9
+    assert section.s_start > MAX_TRIM_SHARE * length
+    assert section.s_end - section.s_start >= MIN_SECTION_SHARE * length - 1e-9

@@ -51,8 +51,9 @@ MIN_TURN_RADIUS = 5.0  # m: cars turn on 5 m or more (pyxodr fails on arcs under
 BEND_MARGIN = 1.0  # m: radius left to a lane edge on the inside of the tightest bend
 
 # Junction trims never take more than this share of a road from each end, so that short roads
-# between wide junctions keep a lane section of at least 20 % of their length.
+# between wide junctions keep a lane section of at least MIN_SECTION_SHARE of their length.
 MAX_TRIM_SHARE = 0.4
+MIN_SECTION_SHARE = 1.0 - 2 * MAX_TRIM_SHARE
 
 # m: a lane section starts and ends straight for this far. Where a junction trim cuts a road
 # just before one of its bends, the stub of a few decimetres before the bend would become, in
@@ -131,19 +132,23 @@ def _filleted(roads: list[Road], cuts: list[tuple[float, float, float]], radii: 
 
 def _past_end_bends(plan: list[Piece], least: float, s0: float, s1: float,
                     length: float) -> tuple[float, float]:
-    """The lane section's ends moved past a bend tighter than ``least`` within ``END_BEND``
-    of them (into the junction, whose connectors take the bend), as far as
-    ``MAX_TRIM_SHARE`` allows. Such a bend is what is left of a road-graph bend that the
-    junction trim cut into; at a lane section's end it folds the lanes and reads as a sharp
-    turn to netconvert."""
+    """The lane section's ends moved past the bends tighter than ``least`` that begin (end)
+    within ``END_BEND`` of them (into the junction, whose connectors take the bend), as far as a lane section of
+    ``MIN_SECTION_SHARE`` of the road is left. Such a bend is what is left of a road-graph bend
+    that the junction trim cut into; at a lane section's end it folds the lanes and reads as a
+    sharp turn to netconvert. The trims' own cap (``MAX_TRIM_SHARE``) may be passed at one
+    end: on a short road whose bend lies next to one junction, that junction takes it."""
     tight = [p for p in plan if p.kind == "arc" and abs(p.curvature) * least > 1.0 + 1e-9]
     if not tight:
         return s0, s1
     total = plan[-1].s + plan[-1].length
-    if tight[0].s < END_BEND:
-        s0 = max(s0, min(s0 + tight[0].s + tight[0].length, MAX_TRIM_SHARE * length))
-    if total - tight[-1].s - tight[-1].length < END_BEND:
-        s1 = min(s1, max(s1 - (total - tight[-1].s), length - MAX_TRIM_SHARE * length))
+    keep = MIN_SECTION_SHARE * length
+    near_start = [p for p in tight if p.s < END_BEND]
+    if near_start:
+        s0 = max(s0, min(s0 + near_start[-1].s + near_start[-1].length, s1 - keep))
+    near_end = [p for p in tight if total - p.s - p.length < END_BEND]
+    if near_end:
+        s1 = min(s1, max(s1 - (total - near_end[0].s), s0 + keep))
     return s0, s1
 
 
