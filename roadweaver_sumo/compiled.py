@@ -15,12 +15,6 @@ from numba import njit
 
 F8, I8 = nb.float64, nb.int64
 F8_1D, F8_2D, I8_1D, I8_2D = F8[::1], F8[:, ::1], I8[::1], I8[:, ::1]
-F8_2D_ANY = F8[:, :]  # any layout: reversed or sliced views of coordinate arrays
-B1, U1 = nb.boolean, nb.uint8
-B1_1D, B1_2D, U1_1D = B1[::1], B1[:, ::1], U1[::1]
-U1_1D_CONST = nb.types.Array(U1, 1, "C", readonly=True)  # a module-level array, read-only
-F4 = nb.float32
-F4_1D, F4_2D, F4_3D = F4[::1], F4[:, ::1], F4[:, :, ::1]
 
 
 def compiled(signature, **options):
