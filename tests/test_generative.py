@@ -23,12 +23,11 @@ from roadweaver_sumo.generative.checkpoint import (
     load_vqvae,
     read_checkpoint,
 )
-from roadweaver_sumo.generative.inference import MaskGITSampler, TorchUniform
+from roadweaver_sumo.generative.inference import TorchUniform
 from roadweaver_sumo.generative.maskgit import MaskGIT
 from roadweaver_sumo.generative.sampling import (
     GUIDANCE,
     STEPS,
-    TEMPERATURE,
     Generator,
     decode_canvas,
     sample_field,
@@ -244,34 +243,18 @@ def test_inverse_cdf_draws_follow_the_probabilities():
 
 
 @pytest.mark.skipif(not SHIPPED_MASKGIT.is_file(), reason="weights not trained yet")
-@pytest.mark.parametrize("guidance", [0.0, 1.0])  # the shipped model's, and two rows a step
-def test_out_of_order_sampling_gives_the_raster_order_tokens(monkeypatch, guidance):
-    """sample_tokens, which samples windows side by side as their context is ready, gives
-    exactly the tokens of the plain loop: window after window in raster order, one random
-    stream, full trunks (a canvas whose last windows have a shorter stride)."""
+def test_a_larger_canvas_extends_the_one_window_sample_of_its_seed():
+    """Windows are sampled in raster order from one random stream, so a larger map of the same
+    seed and condition keeps the first window's tokens (its corner is the small map), and the
+    next window takes them as context instead of sampling them again."""
     gen = Generator.load()
-    assert gen.guidance == 0.0  # the shipped transformer has its guidance distilled
     c = np.zeros(11, np.float32)
-    shape, seed = (40, 30), 5
-    tokens = sample_tokens(gen, c, shape, seed, guidance=guidance)
-
-    g, G = gen.grid, gen.sampler.cfg.groups
-    monkeypatch.setattr(MaskGITSampler, "_masked_features",
-                        lambda self, tokens, masked, mods: self.trunk(tokens, masked, mods)[masked])
-    canvas = np.zeros((*shape, G), dtype=np.int64)
-    done = np.zeros(shape, dtype=bool)
-    modulations = gen.sampler.condition(gen.standardise(c), guidance)
-    rng = TorchUniform(seed)
-    for y in window_starts(shape[0], g):
-        for x in window_starts(shape[1], g):
-            known_mask = done[y:y + g, x:x + g].reshape(-1)
-            out = gen.sampler.sample(
-                modulations, rng, steps=window_steps(1 - known_mask.mean()),
-                known=canvas[y:y + g, x:x + g].reshape(-1, G), known_mask=known_mask,
-                guidance=guidance, temperature=TEMPERATURE)
-            canvas[y:y + g, x:x + g] = out.reshape(g, g, G)
-            done[y:y + g, x:x + g] = True
-    assert np.array_equal(tokens, canvas)
+    g = gen.grid
+    alone = sample_tokens(gen, c, (g, g), 5)
+    canvas = sample_tokens(gen, c, (g, 2 * g), 5)
+    assert np.array_equal(canvas[:, :g], alone)
+    assert not np.array_equal(canvas[:, g:], alone)  # the next windows sample new tokens
+    assert not np.array_equal(sample_tokens(gen, c, (g, g), 6), alone)
 
 
 def test_window_starts_cover_the_canvas_with_half_overlap():

@@ -45,21 +45,6 @@ class TorchUniform:
         return (raw & 0xFFFFFF).astype(F32) * F32(2.0**-24)
 
 
-class DrawnUniform:
-    """Numbers drawn beforehand from a :class:`TorchUniform`, handed out in order by the same
-    ``rand``: a window given the stretch of the stream it would have drawn in raster order can
-    be sampled out of that order."""
-
-    def __init__(self, values: np.ndarray):
-        self.values, self.used = values, 0
-
-    def rand(self, *shape: int) -> np.ndarray:
-        size = math.prod(shape)
-        out = self.values[self.used:self.used + size].reshape(shape)
-        self.used += size
-        return out
-
-
 def still_masked(unknown: int, t: int, steps: int) -> int:
     """How many of a window's ``unknown`` positions stay masked after decoding step ``t``: the
     share cos(π (t + 1) / 2T)."""
@@ -215,17 +200,6 @@ class MaskGITSampler:
             tokens = np.where(newly[:, None], sampled, tokens)
             masked = still
         return tokens
-
-    def draw_count(self, unknown: int, steps: int) -> int:
-        """How many random numbers :meth:`sample` draws for a window with ``unknown`` positions
-        to fill: per step, one per masked position and group, then one per position. (The
-        scores of masked positions are finite, so exactly :func:`still_masked` of them stay
-        masked after each step.)"""
-        total, masked = 0, unknown
-        for t in range(steps):
-            total += self.cfg.groups * masked + self.cfg.grid ** 2
-            masked = still_masked(unknown, t, steps)
-        return total
 
     def _sample_masked(self, h_cond, h_free, rng: TorchUniform, guidance: float,
                        temperature: float):

@@ -4,25 +4,19 @@ The token canvas covers the whole map. It holds the tokens of filling it one win
 transformer's 16 x 16 tile) at a time in raster order, windows overlapping by half: the tokens a
 window shares with windows sampled before it are kept fixed as context and only the rest is
 generated (MaskGIT in-painting), so every road that crosses a window border is continued by the
-next window. Windows whose context is complete are sampled side by side, each with the random
-numbers it draws in raster order, so the tokens are raster order's whatever the schedule. The
-finished canvas goes through the convolutional decoder in one pass, so the decoded field has no
+next window. The finished canvas goes through the convolutional decoder in one pass, so the decoded field has no
 tile borders.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
-from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
-from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from .checkpoint import SHIPPED_MASKGIT, SHIPPED_VQVAE, read_checkpoint
-from .inference import DrawnUniform, FieldDecoder, MaskGITSampler, TorchUniform
+from .inference import FieldDecoder, MaskGITSampler, TorchUniform
 from .settings import MaskGITConfig, VQVAEConfig
 
 #: Decoding steps of a fresh window; a window that is mostly context takes proportionally
@@ -83,16 +77,6 @@ class Generator:
         return ((np.asarray(c, np.float32) - self.cond_mean) / self.cond_std).astype(np.float32)
 
 
-@contextmanager
-def two_threads() -> Iterator[ThreadPoolExecutor]:
-    """Two threads, each multiplying its matrices on one core: two windows side by side are
-    twice as fast as one on two BLAS threads, whose start-up costs more than these small
-    products. A window is computed the same way on any thread, so the tokens do not depend
-    on them."""
-    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(2) as pool:
-        yield pool
-
-
 def window_starts(length: int, window: int) -> list[int]:
     """Window origins along one axis: stride half a window, the last flush with the end."""
     if length <= window:
@@ -111,27 +95,17 @@ class _Window:
     origin: tuple[int, int]
     known_mask: np.ndarray  # (g * g,) the tokens already sampled by earlier windows
     steps: int
-    after: list[int]  # the earlier windows it overlaps, whose tokens it takes as context
 
 
 def _raster_windows(shape: tuple[int, int], g: int, steps: int) -> list[_Window]:
     """The canvas's windows in raster order, each with what it knows when its turn comes."""
-    ys, xs = window_starts(shape[0], g), window_starts(shape[1], g)
-
-    def near(starts: list[int]) -> list[list[int]]:
-        return [[j for j, b in enumerate(starts) if abs(a - b) < g] for a in starts]
-
-    near_y, near_x = near(ys), near(xs)
     done = np.zeros(shape, dtype=bool)
     windows = []
-    for i, y in enumerate(ys):
-        for j, x in enumerate(xs):
+    for y in window_starts(shape[0], g):
+        for x in window_starts(shape[1], g):
             known_mask = done[y:y + g, x:x + g].reshape(g * g).copy()
             done[y:y + g, x:x + g] = True
-            share = 1.0 - known_mask.mean()
-            after = [k for k in (a * len(xs) + b for a in near_y[i] for b in near_x[j])
-                     if k < len(windows)]
-            windows.append(_Window((y, x), known_mask, window_steps(share, steps), after))
+            windows.append(_Window((y, x), known_mask, window_steps(1.0 - known_mask.mean(), steps)))
     return windows
 
 
@@ -143,75 +117,24 @@ def window_steps(unknown_share: float, steps: int = STEPS) -> int:
 
 def sample_tokens(gen: Generator, c: np.ndarray, shape: tuple[int, int], seed: int, *,
                   steps: int = STEPS, guidance: float | None = None,
-                  temperature: float = TEMPERATURE, progress=None) -> np.ndarray:
-    """A token canvas (ny, nx, G) of at least one window: the tokens raster order samples
-    (``guidance`` None: the generator's own, :attr:`Generator.guidance`).
-
-    A window's tokens depend only on its context and its random numbers, so each window is
-    sampled as soon as the windows it overlaps are done, given the stretch of the random
-    stream it would have drawn in raster order (its share is known beforehand: how many
-    numbers a window draws depends only on how many tokens it fills and its steps)."""
+                  temperature: float = TEMPERATURE) -> np.ndarray:
+    """A token canvas (ny, nx, G) of at least one window, sampled window after window in raster
+    order from one random stream (``guidance`` None: the generator's own,
+    :attr:`Generator.guidance`)."""
     g, G = gen.grid, gen.sampler.cfg.groups
     guidance = gen.guidance if guidance is None else guidance
     ny, nx = max(shape[0], g), max(shape[1], g)
     canvas = np.zeros((ny, nx, G), dtype=np.int64)
     modulations = gen.sampler.condition(gen.standardise(c), guidance)
-    windows = _raster_windows((ny, nx), g, steps)
     rng = TorchUniform(seed)
-    streams = [DrawnUniform(rng.rand(gen.sampler.draw_count(g * g - int(w.known_mask.sum()),
-                                                            w.steps)))
-               for w in windows]
-
-    def sample(k: int) -> None:
-        window = windows[k]
+    for window in _raster_windows((ny, nx), g, steps):
         y, x = window.origin
         known = canvas[y:y + g, x:x + g].reshape(g * g, G)
-        out = gen.sampler.sample(modulations, streams[k], steps=window.steps, known=known,
+        out = gen.sampler.sample(modulations, rng, steps=window.steps, known=known,
                                  known_mask=window.known_mask, guidance=guidance,
                                  temperature=temperature)
-        assert streams[k].used == len(streams[k].values)
         canvas[y:y + g, x:x + g] = out.reshape(g, g, G)
-
-    with two_threads() as pool:
-        _in_dependency_order(windows, sample, pool, progress)
     return canvas
-
-
-def _in_dependency_order(windows: list[_Window], sample, pool: ThreadPoolExecutor,
-                         progress) -> None:
-    """Run ``sample(k)`` for every window once those it overlaps are done. Windows that are
-    ready together run side by side on the pool's two threads; a window that is alone (the
-    canvas's first ones) runs here."""
-    waiting = [len(w.after) for w in windows]
-    unlocks: list[list[int]] = [[] for _ in windows]
-    for k, w in enumerate(windows):
-        for j in w.after:
-            unlocks[j].append(k)
-    ready, running, finished = [0], {}, 0
-
-    def finish(k: int) -> None:
-        nonlocal finished
-        finished += 1
-        for later in unlocks[k]:
-            waiting[later] -= 1
-            if not waiting[later]:
-                ready.append(later)
-        if progress:
-            progress(finished, len(windows))
-
-    while ready or running:
-        if len(ready) == 1 and not running:
-            k = ready.pop()
-            sample(k)
-            finish(k)
-            continue
-        for k in sorted(ready):
-            running[pool.submit(sample, k)] = k
-        ready.clear()
-        done, _ = wait(running, return_when=FIRST_COMPLETED)
-        for future in done:
-            future.result()
-            finish(running.pop(future))
 
 
 def sample_field(gen: Generator, c: np.ndarray, width_m: float, height_m: float, seed: int, *,
