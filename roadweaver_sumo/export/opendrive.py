@@ -31,9 +31,9 @@ import itertools
 from collections import defaultdict
 from collections.abc import Iterator
 from pathlib import Path
+from xml.sax.saxutils import escape
 
 import numpy as np
-from lxml import etree
 
 from ..hdmap.model import DIRECTIONS, HDMap, Lane, Road
 from ..hdmap.reference import Piece
@@ -45,36 +45,36 @@ DATE = "2025-01-01T00:00:00"  # fixed, so that two runs write the same bytes
 ROAD_TYPE = "town"  # OpenDRIVE 1.4 road type: known to every reader (see the module docstring)
 MARK_WIDTH = 0.12  # m
 SIGNAL_SETBACK = 1.0  # m before the road end
+QUOTE = {'"': "&quot;"}  # escaped in attribute values besides &, <, >
 SIGNAL_CATALOGUE = {"country": "DE", "type": "1000001", "subtype": "-1"}  # StVO traffic light
 
 
 def write_opendrive(hd: HDMap, path: Path) -> Path:
     """Write ``hd`` as OpenDRIVE 1.7 to ``path`` (parent folders created); return the path.
 
-    Streamed: each child of ``<OpenDRIVE>`` is made, indented and written in turn, never the
-    whole tree at once. A tree of lxml elements holds several times the file's size in
-    memory, and a large map's file runs to hundreds of megabytes."""
-    elements = opendrive_elements(hd)
+    Written as text lines, element by element (:func:`opendrive_lines`), never the whole
+    document at once: a large map's file runs to hundreds of megabytes. The elements are flat
+    records of numbers and ids, so plain formatting writes them as an XML library would
+    (two-space indent, empty elements closed with ``/>``), several times faster than building
+    an element tree first."""
+    lines = opendrive_lines(hd)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("wb") as file:
-        with etree.xmlfile(file, encoding="UTF-8") as xml:
-            xml.write_declaration()
-            with xml.element("OpenDRIVE"):
-                for element in elements:
-                    etree.indent(element, INDENT, level=1)
-                    xml.write(f"\n{INDENT}", element)
-                xml.write("\n")
-        file.write(b"\n")  # xmlfile writes nothing after the root element
+    with path.open("w", encoding="utf-8", newline="\n") as file:
+        file.write("<?xml version='1.0' encoding='UTF-8'?>\n<OpenDRIVE>\n")
+        for chunk in lines:
+            file.write("\n".join(chunk))
+            file.write("\n")
+        file.write("</OpenDRIVE>\n")
     return path
 
 
-def opendrive_elements(hd: HDMap) -> Iterator[etree._Element]:
-    """The children of ``<OpenDRIVE>`` of ``hd``: header, roads, connecting roads,
-    controllers, junctions, in that (schema) order.
+def opendrive_lines(hd: HDMap) -> Iterator[list[str]]:
+    """The children of ``<OpenDRIVE>`` of ``hd`` as lists of lines: header, roads, connecting
+    roads, controllers, junctions, in that (schema) order.
 
     Ids, traffic lights and connector geometry are worked out at once, so that errors come
-    before the file is opened; each road and junction element is made only when its turn
+    before the file is opened; each road and junction is formatted only when its turn
     comes."""
     connecting = connecting_road_ids(hd)
     junctions = junction_ids(hd)
@@ -82,8 +82,7 @@ def opendrive_elements(hd: HDMap) -> Iterator[etree._Element]:
     connectors = hd.connectors()
     return itertools.chain(
         [_header(hd)],
-        # popped: a signal element kept here would keep its whole road's tree alive
-        (_road(hd, hd.roads[rid], signals.pop(rid, []), junctions) for rid in sorted(hd.roads)),
+        (_road(hd, hd.roads[rid], signals.get(rid, []), junctions) for rid in sorted(hd.roads)),
         (_connecting_road(hd, lane, piece, connecting[lane.id], junctions[lane.junction])
          for lane, piece in zip(connectors, _connector_pieces(connectors), strict=True)),
         controllers,
@@ -119,120 +118,130 @@ def _num(x: float, decimals: int = DECIMALS) -> str:
     return text[1:] if text[0] == "-" and not text.strip("-0.") else text
 
 
-def _attrs(attrs: dict) -> dict[str, str]:
-    """Attribute values as text: floats with fixed decimals, ids and counts as they are."""
-    return {key: _num(value) if isinstance(value, float) else str(value)
-            for key, value in attrs.items()}
+
+def _attributes(attrs: dict) -> str:
+    """`` key="value"`` for each attribute: floats with fixed decimals, text escaped as an XML
+    writer escapes attribute values, ids and counts as they are."""
+    return "".join(f' {key}="{_text(value)}"' for key, value in attrs.items())
 
 
-def _elem(tag: str, **attrs) -> etree._Element:
-    """A new element with formatted attributes."""
-    return etree.Element(tag, _attrs(attrs))
+def _text(value) -> str:
+    if isinstance(value, float):
+        return _num(value)
+    if isinstance(value, str):
+        return escape(value, QUOTE)
+    return str(value)
 
 
-def _sub(parent: etree._Element, tag: str, **attrs) -> etree._Element:
-    """A new child element with formatted attributes."""
-    return etree.SubElement(parent, tag, _attrs(attrs))
+def _element(depth: int, tag: str, attrs: dict, children: list[str] = ()) -> list[str]:
+    """The lines of ``<tag ...>`` at ``depth`` (indent levels) around the lines of its
+    ``children`` (already indented one level deeper), or ``<tag .../>`` without children."""
+    opening = f"{INDENT * depth}<{tag}{_attributes(attrs)}"
+    if not children:
+        return [opening + "/>"]
+    return [opening + ">", *children, f"{INDENT * depth}</{tag}>"]
 
 
-def _header(hd: HDMap) -> etree._Element:
+def _header(hd: HDMap) -> list[str]:
     """``<header>`` with the map extent and a transverse Mercator geo-reference centred on
     the local origin (chapter "Georeferencing": PROJ string)."""
-    header = _elem("header", revMajor=1, revMinor=7, name="roadweaver-sumo", version="1.0",
-                   date=DATE, north=float(hd.height), south=0.0, east=float(hd.width), west=0.0,
-                   vendor="roadweaver-sumo")
+    reference = []
     if hd.geo_origin is not None:
         lat, lon = hd.geo_origin
         proj = (f"+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +ellps=WGS84"
                 " +units=m +no_defs")
-        etree.SubElement(header, "geoReference").text = etree.CDATA(proj)
-    return header
+        reference = [f"{INDENT * 2}<geoReference><![CDATA[{proj}]]></geoReference>"]
+    return _element(1, "header", {"revMajor": 1, "revMinor": 7, "name": "roadweaver-sumo",
+                                  "version": "1.0", "date": DATE, "north": float(hd.height),
+                                  "south": 0.0, "east": float(hd.width), "west": 0.0,
+                                  "vendor": "roadweaver-sumo"}, reference)
 
 
-def _road_element(rid: int, name: str, junction: int, pieces: list[Piece]) -> etree._Element:
-    """An empty ``<road>`` as long as its plan view, right-hand traffic."""
-    return _elem("road", id=rid, name=name, junction=junction,
-                 length=float(sum(p.length for p in pieces)), rule="RHT")
+def _road_attributes(rid: int, name: str, junction: int, pieces: list[Piece]) -> dict:
+    """A ``<road>``'s attributes: as long as its plan view, right-hand traffic."""
+    return {"id": rid, "name": name, "junction": junction,
+            "length": float(sum(p.length for p in pieces)), "rule": "RHT"}
 
 
-def _add_plan_view(road: etree._Element, pieces: list[Piece]) -> None:
+def _plan_view(pieces: list[Piece]) -> list[str]:
     """``<planView>``: one ``<geometry>`` per piece (chapter "Geometry"), a line, an arc or
     a normalised ``paramPoly3``."""
-    plan_view = etree.SubElement(road, "planView")
+    lines = []
     for p in pieces:
-        geometry = _sub(plan_view, "geometry", s=p.s, x=p.x, y=p.y, hdg=p.hdg, length=p.length)
         if p.kind == "line":
-            etree.SubElement(geometry, "line")
+            shape = _element(4, "line", {})
         elif p.kind == "arc":
-            etree.SubElement(geometry, "arc", curvature=_num(p.curvature, CURVATURE_DECIMALS))
+            shape = _element(4, "arc", {"curvature": _num(p.curvature, CURVATURE_DECIMALS)})
         else:
             coefficients = {f"{c}{axis}": value for axis, values in (("U", p.u), ("V", p.v))
                             for c, value in zip("abcd", values, strict=True)}
-            _sub(geometry, "paramPoly3", **coefficients, pRange="normalized")
+            shape = _element(4, "paramPoly3", coefficients | {"pRange": "normalized"})
+        lines += _element(3, "geometry", {"s": p.s, "x": p.x, "y": p.y, "hdg": p.hdg,
+                                          "length": p.length}, shape)
+    return _element(2, "planView", {}, lines)
 
 
-def _road(hd: HDMap, road: Road, signals: list, junctions: dict[int, int]) -> etree._Element:
+def _road(hd: HDMap, road: Road, signals: list, junctions: dict[int, int]) -> list[str]:
     """A road between two junctions (their ids ``junctions``): its two driving directions as
     right and left lanes."""
-    elem = _road_element(road.id, f"r{road.id}", -1, road.plan)
     ends = [(tag, node) for tag, node in (("predecessor", road.from_node),
                                           ("successor", road.to_node))
             if hd.junctions[node].connectors]  # a junction without connectors is not written
-    if ends:
-        link = etree.SubElement(elem, "link")
-        for tag, node in ends:
-            _sub(link, tag, elementType="junction", elementId=junctions[node])
-    _add_type(elem, road.road_class, road.speed)
-    _add_plan_view(elem, road.plan)
-    _add_lanes(elem, hd, road)
+    link = [line for tag, node in ends
+            for line in _element(3, tag, {"elementType": "junction",
+                                          "elementId": junctions[node]})]
+    children = [*(_element(2, "link", {}, link) if link else []),
+                *_type(road.road_class, road.speed), *_plan_view(road.plan), *_lanes(hd, road)]
     if signals:
-        etree.SubElement(elem, "signals").extend(signals)
-    return elem
+        children += _element(2, "signals", {}, [line for signal in signals for line in signal])
+    return _element(1, "road", _road_attributes(road.id, f"r{road.id}", -1, road.plan), children)
 
 
-def _add_type(road: etree._Element, road_class: str, speed: float) -> None:
+def _type(road_class: str, speed: float) -> list[str]:
     """``<type>`` ``town`` with the class speed limit (chapter "Road type") and the HD map
     road class as ``<userData>`` (chapter "Ancillary data")."""
-    kind = _sub(road, "type", s=0.0, type=ROAD_TYPE)
-    _sub(kind, "speed", max=float(speed), unit="m/s")
-    _sub(kind, "userData", code="roadClass", value=road_class)
+    return _element(2, "type", {"s": 0.0, "type": ROAD_TYPE},
+                    [*_element(3, "speed", {"max": float(speed), "unit": "m/s"}),
+                     *_element(3, "userData", {"code": "roadClass", "value": road_class})])
 
 
-def _add_lanes(road_elem: etree._Element, hd: HDMap, road: Road) -> None:
+def _lanes(hd: HDMap, road: Road) -> list[str]:
     """``<lanes>``: one lane section, left lanes outermost (id n) first and right lanes
     innermost (id -1) first (descending ids)."""
-    section = _sub(etree.SubElement(road_elem, "lanes"), "laneSection", s=0.0)
-    _add_side(section, hd, "left", road.lanes("b"))
-    centre = _sub(etree.SubElement(section, "center"), "lane", id=0, type="none")
-    _add_mark(centre, "solid" if road.road_class == "arterial" else "broken")
-    _add_side(section, hd, "right", reversed(road.lanes("f")))
+    centre = _element(5, "lane", {"id": 0, "type": "none"},
+                      _mark("solid" if road.road_class == "arterial" else "broken"))
+    section = [*_side(hd, "left", road.lanes("b")), *_element(4, "center", {}, centre),
+               *_side(hd, "right", reversed(road.lanes("f")))]
+    return _element(2, "lanes", {}, _element(3, "laneSection", {"s": 0.0}, section))
 
 
-def _add_side(section: etree._Element, hd: HDMap, tag: str, lane_ids) -> None:
+def _side(hd: HDMap, tag: str, lane_ids) -> list[str]:
     """``<left>`` or ``<right>`` with its lanes: constant width, the outer road mark, speed
     limit. No ``<link>``: the road ends in junctions at both ends (rule
     road.lane.link.no_link)."""
-    side = etree.SubElement(section, tag)
+    lanes = []
     for lane in map(hd.lanes.__getitem__, lane_ids):
-        elem = _sub(side, "lane", id=xodr_lane_id(hd, lane), type="driving")
-        _add_width(elem, float(lane.width), 0.0)
-        _add_mark(elem, "solid" if lane.index == 0 else "broken")  # index 0: the outermost
-        _add_speed(elem, float(lane.speed))
+        lanes += _element(5, "lane", {"id": xodr_lane_id(hd, lane), "type": "driving"},
+                          [*_width(float(lane.width), 0.0),
+                           *_mark("solid" if lane.index == 0 else "broken"),  # 0: outermost
+                           *_speed(float(lane.speed))])
+    return _element(4, tag, {}, lanes)
 
 
-def _add_mark(lane: etree._Element, kind: str) -> None:
+def _mark(kind: str) -> list[str]:
     """A white road mark on the lane's outer border (``broken`` lines may be crossed)."""
-    _sub(lane, "roadMark", sOffset=0.0, type=kind, weight="standard", color="standard",
-         width=MARK_WIDTH, laneChange="both" if kind == "broken" else "none")
+    return _element(6, "roadMark", {"sOffset": 0.0, "type": kind, "weight": "standard",
+                                    "color": "standard", "width": MARK_WIDTH,
+                                    "laneChange": "both" if kind == "broken" else "none"})
 
 
-def _add_width(lane: etree._Element, a: float, b: float) -> None:
+def _width(a: float, b: float) -> list[str]:
     """``<width>``: linear width ``a + b s``."""
-    _sub(lane, "width", sOffset=0.0, a=a, b=b, c=0.0, d=0.0)
+    return _element(6, "width", {"sOffset": 0.0, "a": a, "b": b, "c": 0.0, "d": 0.0})
 
 
-def _add_speed(lane: etree._Element, speed: float) -> None:
-    _sub(lane, "speed", sOffset=0.0, max=speed, unit="m/s")
+def _speed(speed: float) -> list[str]:
+    return _element(6, "speed", {"sOffset": 0.0, "max": speed, "unit": "m/s"})
 
 
 def _contact(lane: Lane, arriving: bool) -> str:
@@ -249,87 +258,86 @@ def _connector_pieces(connectors: list[Lane]) -> list[Piece]:
     return [lane.plan[0] if lane.plan is not None else next(beziers) for lane in connectors]
 
 
-def _connecting_road(hd: HDMap, lane: Lane, piece: Piece, rid: int, jid: int) -> etree._Element:
+def _connecting_road(hd: HDMap, lane: Lane, piece: Piece, rid: int, jid: int) -> list[str]:
     """A connector as a one-lane connecting road inside its junction ``jid`` (chapter
     "Junctions": connecting roads) along ``piece``, linked to its incoming and outgoing road
     and lanes. Its width changes linearly along it; a lane offset of half the width centres
     the lane on the reference line."""
     incoming, outgoing = hd.lanes[lane.predecessors[0]], hd.lanes[lane.successors[0]]
-    elem = _road_element(rid, lane.id, jid, [piece])
-    link = etree.SubElement(elem, "link")
-    _sub(link, "predecessor", elementType="road", elementId=incoming.road,
-         contactPoint=_contact(incoming, arriving=True))
-    _sub(link, "successor", elementType="road", elementId=outgoing.road,
-         contactPoint=_contact(outgoing, arriving=False))
-    _add_type(elem, lane.road_class, lane.speed)
-    _add_plan_view(elem, [piece])
+    link = [*_element(3, "predecessor", {"elementType": "road", "elementId": incoming.road,
+                                         "contactPoint": _contact(incoming, arriving=True)}),
+            *_element(3, "successor", {"elementType": "road", "elementId": outgoing.road,
+                                       "contactPoint": _contact(outgoing, arriving=False)})]
     width = float(lane.width)
     slope = (float(lane.end_width) - width) / piece.length
-    lanes = etree.SubElement(elem, "lanes")
-    _sub(lanes, "laneOffset", s=0.0, a=width / 2.0, b=slope / 2.0, c=0.0, d=0.0)
-    section = _sub(lanes, "laneSection", s=0.0)
-    _sub(etree.SubElement(section, "center"), "lane", id=0, type="none")
-    right = _sub(etree.SubElement(section, "right"), "lane", id=-1, type="driving")
-    lane_link = etree.SubElement(right, "link")
-    _sub(lane_link, "predecessor", id=xodr_lane_id(hd, incoming))
-    _sub(lane_link, "successor", id=xodr_lane_id(hd, outgoing))
-    _add_width(right, width, slope)
-    _add_speed(right, float(lane.speed))
-    return elem
+    lane_link = [*_element(7, "predecessor", {"id": xodr_lane_id(hd, incoming)}),
+                 *_element(7, "successor", {"id": xodr_lane_id(hd, outgoing)})]
+    right = _element(5, "lane", {"id": -1, "type": "driving"},
+                     [*_element(6, "link", {}, lane_link), *_width(width, slope),
+                      *_speed(float(lane.speed))])
+    section = [*_element(4, "center", {}, _element(5, "lane", {"id": 0, "type": "none"})),
+               *_element(4, "right", {}, right)]
+    lanes = [*_element(3, "laneOffset", {"s": 0.0, "a": width / 2.0, "b": slope / 2.0,
+                                         "c": 0.0, "d": 0.0}),
+             *_element(3, "laneSection", {"s": 0.0}, section)]
+    return _element(1, "road", _road_attributes(rid, lane.id, jid, [piece]),
+                    [*_element(2, "link", {}, link), *_type(lane.road_class, lane.speed),
+                     *_plan_view([piece]), *_element(2, "lanes", {}, lanes)])
 
 
-def _junction(hd: HDMap, node: int, jid: int, connecting: dict[str, int]) -> etree._Element:
+def _junction(hd: HDMap, node: int, jid: int, connecting: dict[str, int]) -> list[str]:
     """``<junction>`` ``jid`` of node ``node``: one connection per connecting road, from its
     incoming road."""
     junction = hd.junctions[node]
-    elem = _elem("junction", id=jid, name=f"n{node}", type="default")
+    children = []
     for k, lane_id in enumerate(junction.connectors):
         incoming = hd.lanes[hd.lanes[lane_id].predecessors[0]]
-        connection = _sub(elem, "connection", id=k, incomingRoad=incoming.road,
-                          connectingRoad=connecting[lane_id], contactPoint="start")
-        etree.SubElement(connection, "laneLink", {"from": str(xodr_lane_id(hd, incoming)),
-                                                  "to": "-1"})
+        children += _element(2, "connection", {"id": k, "incomingRoad": incoming.road,
+                                               "connectingRoad": connecting[lane_id],
+                                               "contactPoint": "start"},
+                             _element(3, "laneLink", {"from": xodr_lane_id(hd, incoming),
+                                                      "to": -1}))
     if junction.type == "traffic_light":
-        _sub(elem, "controller", id=node, type="0", sequence=0)
-    return elem
+        children += _element(2, "controller", {"id": node, "type": "0", "sequence": 0})
+    return _element(1, "junction", {"id": jid, "name": f"n{node}", "type": "default"}, children)
 
 
-def _traffic_lights(hd: HDMap):
-    """Signals per road (dict road id -> ``<signal>`` elements) and one ``<controller>`` per
-    traffic-light junction listing them (chapter "Signals": controllers). A signal stands
-    right of each road direction arriving at the junction, ``SIGNAL_SETBACK`` before its end,
-    valid for all lanes of that direction."""
+def _traffic_lights(hd: HDMap) -> tuple[dict[int, list[list[str]]], list[list[str]]]:
+    """Signals per road (road id -> the lines of its ``<signal>`` elements) and one
+    ``<controller>`` per traffic-light junction listing them (chapter "Signals":
+    controllers). A signal stands right of each road direction arriving at the junction,
+    ``SIGNAL_SETBACK`` before its end, valid for all lanes of that direction."""
     signals, controllers = defaultdict(list), []
     count = 0
     for jid in sorted(hd.junctions):
         junction = hd.junctions[jid]
         if junction.type != "traffic_light" or not junction.connectors:
             continue
-        controller = _elem("controller", id=jid, name=f"n{jid}")
+        controls = []
         for rid in junction.roads:
             road = hd.roads[rid]
             for direction in DIRECTIONS:
                 if road.ends_at(direction) != jid:
                     continue
                 signals[rid].append(_signal(road, direction, count, jid))
-                _sub(controller, "control", signalId=count, type="0")
+                controls += _element(2, "control", {"signalId": count, "type": "0"})
                 count += 1
-        controllers.append(controller)
+        controllers.append(_element(1, "controller", {"id": jid, "name": f"n{jid}"}, controls))
     return signals, controllers
 
 
-def _signal(road: Road, direction: str, sid: int, jid: int) -> etree._Element:
+def _signal(road: Road, direction: str, sid: int, jid: int) -> list[str]:
     """One traffic light for driving direction ``direction`` of ``road`` (orientation ``+``
     faces traffic along the reference line)."""
     length = sum(p.length for p in road.plan)
     setback = min(SIGNAL_SETBACK, length / 2.0)
     n = len(road.lanes(direction))
     side = -1.0 if direction == "f" else 1.0
-    elem = _elem("signal", s=length - setback if direction == "f" else setback,
-                 t=side * (n * road.lane_width + 0.5), id=sid,
-                 name=f"n{jid}_r{road.id}_{direction}", dynamic="yes",
-                 orientation="+" if direction == "f" else "-", zOffset=2.0,
-                 **SIGNAL_CATALOGUE, height=0.9, width=0.3)
     lanes = (-n, -1) if direction == "f" else (1, n)
-    _sub(elem, "validity", fromLane=lanes[0], toLane=lanes[1])
-    return elem
+    return _element(3, "signal", {"s": length - setback if direction == "f" else setback,
+                                  "t": side * (n * road.lane_width + 0.5), "id": sid,
+                                  "name": f"n{jid}_r{road.id}_{direction}", "dynamic": "yes",
+                                  "orientation": "+" if direction == "f" else "-",
+                                  "zOffset": 2.0, **SIGNAL_CATALOGUE, "height": 0.9,
+                                  "width": 0.3},
+                    _element(4, "validity", {"fromLane": lanes[0], "toLane": lanes[1]}))
