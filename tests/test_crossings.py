@@ -69,6 +69,19 @@ def test_a_road_may_not_pass_close_to_another_beside_its_own_junction():
     assert roads_too_close(G) != []
 
 
+def test_pairs_asked_among_some_roads_are_those_of_all_pairs_with_them():
+    """Two pairs of parallel roads too close; asked among one road of a pair, only that pair
+    comes back, as the full check names it (edges as sorted node pairs)."""
+    G = _graph(([(100, 200), (900, 200)], "arterial"), ([(100, 205), (900, 205)], "local"),
+               ([(100, 700), (900, 700)], "arterial"), ([(100, 706), (900, 706)], "local"))
+    everything = roads_too_close(G)
+    assert len(everything) == 2
+    for pair in everything:
+        assert all(edge == tuple(sorted(edge)) for edge in pair)
+        for edge in pair:
+            assert roads_too_close(G, among={edge}) == [pair]
+
+
 def test_clean_up_removes_the_lesser_of_two_roads_too_close():
     G = _graph(([(100, 300), (900, 300)], "arterial"), ([(100, 305), (900, 305)], "local"),
                ([(100, 300), (100, 700), (900, 700), (900, 300)], "collector"))

@@ -122,7 +122,7 @@ def smooth_bends(G: nx.Graph, max_turn_deg: float = 30.0, radius: float = 20.0) 
             jogged[tuple(sorted((u, v)))] = coords
         data["coords"] = round_corners(merged, max_turn_deg, radius)
     if jogged:
-        for pair in roads_too_close(G):
+        for pair in roads_too_close(G, among=jogged.keys()):
             for e in set(pair) & jogged.keys():
                 G.edges[e]["coords"] = round_corners(jogged.pop(e), max_turn_deg, radius)
     straighten_road_ends(G)  # fillets of bends close to a junction

@@ -40,11 +40,12 @@ def clearance(class_a: str, class_b: str) -> float:
     return half_width(class_a) + half_width(class_b) + MARGIN
 
 
-def roads_too_close(G: nx.Graph) -> list[tuple[tuple, tuple]]:
+def roads_too_close(G: nx.Graph, among: set | None = None) -> list[tuple[tuple, tuple]]:
     """Pairs of roads (edges, each sorted) that come within their clearance of each other
-    outside the junction areas near them (:func:`_outside_junctions`). A bend node
-    (degree 2) of one road is no junction of the other, nor is a dead end: a dead end whose
-    last metres lie on another road is exactly such an overlap.
+    outside the junction areas near them (:func:`_outside_junctions`); with ``among`` (sorted
+    edges), only the pairs with one of those roads. A bend node (degree 2) of one road is no
+    junction of the other, nor is a dead end: a dead end whose last metres lie on another
+    road is exactly such an overlap.
 
     All pairs are measured at once (shapely's array functions): the pairs whose free parts
     (outside the discs) stay a clearance apart go first, the rest are confirmed by the
@@ -52,11 +53,14 @@ def roads_too_close(G: nx.Graph) -> list[tuple[tuple, tuple]]:
     roads = sorted_edge_list(G)
     if len(roads) < 2:
         return []
-    edges = [(u, v) for u, v, _ in roads]
+    edges = [(u, v) if u <= v else (v, u) for u, v, _ in roads]
     lines = np.array([shapely.LineString(data["coords"]) for _, _, data in roads])
     half = np.array([LANE_CONFIGS[data["road_class"]].half_width for _, _, data in roads])
     widest = 2 * half.max() + MARGIN
-    i, j = shapely.STRtree(lines).query(lines, predicate="dwithin", distance=widest)
+    asked = np.arange(len(edges)) if among is None else np.flatnonzero(
+        [edge in among for edge in edges])
+    i, j = shapely.STRtree(lines).query(lines[asked], predicate="dwithin", distance=widest)
+    i, j = np.unique(np.sort([asked[i], j], axis=0), axis=1)
     i, j = i[i < j], j[i < j]
     reach = half[i] + half[j] + MARGIN
     near = shapely.distance(lines[i], lines[j]) < reach
