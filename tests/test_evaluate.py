@@ -67,3 +67,12 @@ def test_bad_input_is_one_line_error(tmp_path, capsys, content, message):
 def test_bad_area_is_refused(grid_net):
     with pytest.raises(RoadweaverError, match="area-km2"):
         evaluate_net(grid_net, area_km2=0.0)
+
+
+def test_realism_statistics_of_a_grid_closed_by_its_border_road(grid_net):
+    realism = evaluate_net(grid_net)["realism"]
+    assert realism["four_way_share_inner"] == 1.0  # the 3 x 3 inner crossings
+    assert realism["frame_share"] == pytest.approx(0.4)  # 4 of the 10 streets run on the border
+    assert realism["block_area_median"] == pytest.approx(200.0**2)
+    assert realism["block_area_median_inner"] == pytest.approx(200.0**2)  # the 4 central ones
+    assert realism["small_block_share_inner"] == 0.0

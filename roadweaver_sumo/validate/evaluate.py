@@ -7,14 +7,16 @@ not known from a foreign net: it is the net's ``convBoundary`` unless the caller
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import sumolib
 from lxml import etree
 
 from ..errors import RoadweaverError
+from ..realism import realism_statistics
 from .net_metrics import loaded_net_metrics
-from .netgraph import load_net, road_edges
+from .netgraph import load_net, road_edges, road_graph
 
 
 def evaluate_net(net_path: Path, area_km2: float | None = None) -> dict:
@@ -39,19 +41,27 @@ def evaluate_net(net_path: Path, area_km2: float | None = None) -> dict:
         if not area_km2 > 0:
             raise RoadweaverError(f"{net_path} has an empty convBoundary; pass --area-km2")
     result = loaded_net_metrics(net, area_km2)
-    result.update(net=str(net_path), area_km2=area_km2, area_source=source)
+    result.update(net=str(net_path), area_km2=area_km2, area_source=source,
+                  realism=_json_ready(realism_statistics(road_graph(net), net_bbox(net))))
     return result
 
 
 def boundary_area_km2(net: sumolib.net.Net) -> float:
     """Area (km²) of the net's ``convBoundary``, or of its junctions' bounding box when the net
     declares no location."""
+    x0, y0, x1, y1 = net_bbox(net)
+    return (x1 - x0) * (y1 - y0) / 1e6
+
+
+def net_bbox(net: sumolib.net.Net) -> tuple[float, float, float, float]:
+    """The net's ``convBoundary`` (x0, y0, x1, y1), or its junctions' bounding box when the net
+    declares no location: the map border that the realism statistics measure from."""
     try:
         x0, y0, x1, y1 = net.getBoundary()
     except (KeyError, ValueError):
         xs, ys = zip(*(n.getCoord()[:2] for n in net.getNodes()), strict=True)
         x0, y0, x1, y1 = min(xs), min(ys), max(xs), max(ys)
-    return (x1 - x0) * (y1 - y0) / 1e6
+    return float(x0), float(y0), float(x1), float(y1)
 
 
 def summary_lines(result: dict) -> list[str]:
@@ -69,7 +79,19 @@ def summary_lines(result: dict) -> list[str]:
         (f"reachability: junctions {result['junction_reachability']:.4f}, lanes"
          f" {result['lane_reachability']:.4f}; lane-end gaps mean {al['mean']:.3f} m,"
          f" p95 {al['p95']:.3f} m, max {al['max']:.3f} m"),
+        "realism (issue 35; _inner: away from the border):",
+        *_columns([f"{k} {'-' if v is None else f'{v:.4g}'}"
+                   for k, v in sorted(result["realism"].items())]),
     ]
+
+
+def _json_ready(stats: dict) -> dict:
+    """NaN (a figure the net does not define, e.g. no blocks) as null, so --json is JSON."""
+    return {k: None if math.isnan(v) else v for k, v in stats.items()}
+
+
+def _columns(items: list[str], per_line: int = 3) -> list[str]:
+    return ["  " + ", ".join(items[i : i + per_line]) for i in range(0, len(items), per_line)]
 
 
 def _looks_like_net(path: Path) -> bool:
