@@ -838,3 +838,24 @@ def test_no_learned_map_keeps_a_block_smaller_than_a_junction(tmp_path):
                  "--style", "organic", "--out", str(out)]) == 0
     simulation = json.loads((out / "report.json").read_text())["simulation"]
     assert (simulation["collisions"], simulation["teleports_total"]) == (0, 0)
+
+
+def test_a_u_of_two_corners_is_rounded_as_two_corners_not_folded_into_one():
+    """An arterial runs south, 24 m west and north again (learned mixed 2 km d40 s15: a road
+    joined through a dissolved node along the ring). Each corner's fillet wants 25 m of leg;
+    made one corner at the middle of the leg, the road doubled back on itself at one vertex
+    (a 180-degree sharp bend that no cut could mend). Smoothed, both corners stay, and the
+    road turns no sharper than the sharp-bend limit."""
+    from roadweaver_sumo.expand.bends import smooth_bends
+    from roadweaver_sumo.metrics import sharp_bends
+    from roadweaver_sumo.roadgraph import add_road, new_road_graph
+
+    road = np.array([(40.0, 1155.0), (39.0, 808.6), (15.0, 805.0), (15.0, 1458.4)])
+    G = new_road_graph(2000, 2000)
+    G.add_node(0, xy=tuple(road[0]))
+    G.add_node(1, xy=tuple(road[-1]))
+    add_road(G, 0, 1, road, "arterial")
+    smooth_bends(G)
+    assert sharp_bends(G) == 0
+    smoothed = G.edges[0, 1]["coords"]
+    assert shapely.LineString(smoothed).hausdorff_distance(shapely.LineString(road)) < 15.0

@@ -68,11 +68,18 @@ def _distinct(coords: np.ndarray) -> np.ndarray:
     return coords[np.r_[True, np.hypot(*np.diff(coords, axis=0).T) > 1e-6]]
 
 
+#: Two corners that turn the same way are not made one corner turning more than this (radians):
+#: the two corners of a U a few metres wide would become one vertex doubling back, which
+#: rounding cannot save (``metrics.sharp_bends``).
+FOLD = math.radians(SHARP_BEND_DEG)
+
+
 def without_jogs(coords: np.ndarray, max_turn_deg: float, least_radius: float) -> np.ndarray:
     """``coords`` with every corner that turns more than ``max_turn_deg`` given the room its
     fillet (:func:`round_corners`) needs for a radius of ``least_radius``: where the leg to
     an interior neighbour is shorter, that neighbour goes, or, when it is such a corner too,
-    the two become one at the middle of their leg; shortest leg first.
+    the two become one at the middle of their leg (unless that one would turn more than
+    :data:`FOLD`: a U stays a U); shortest leg first.
 
     Such pairs are one bend drawn as a jog (a step of the traced skeleton) or a corner where
     two roads were joined at a dissolved junction next to a vertex of a traced curve.
@@ -82,6 +89,7 @@ def without_jogs(coords: np.ndarray, max_turn_deg: float, least_radius: float) -
     t·cos²(θ/2)/sin(θ/2)."""
     coords = _distinct(coords)
     limit = math.radians(max_turn_deg)
+    kept: set[bytes] = set()  # legs between two corners that one corner would fold back
     while len(coords) >= 4:
         half_turns = np.r_[0.0, turn_angles(coords) / 2, 0.0]
         sharp = half_turns > limit / 2
@@ -90,11 +98,16 @@ def without_jogs(coords: np.ndarray, max_turn_deg: float, least_radius: float) -
         legs = np.hypot(*np.diff(coords, axis=0).T)
         short = legs < np.maximum(needs[:-1], needs[1:])
         short[[0, -1]] = False  # a road's end node stays
+        short &= [coords[k:k + 2].tobytes() not in kept for k in range(len(legs))]
         if not short.any():
             break
         k = np.flatnonzero(short)[np.argmin(legs[short])]
         if sharp[k] and sharp[k + 1]:
-            coords = np.vstack([coords[:k], (coords[k] + coords[k + 1]) / 2, coords[k + 2:]])
+            middle = (coords[k] + coords[k + 1]) / 2
+            if turn_angles(np.array([coords[k - 1], middle, coords[k + 2]]))[0] > FOLD:
+                kept.add(coords[k:k + 2].tobytes())  # a U of two corners stays a U
+                continue
+            coords = np.vstack([coords[:k], middle, coords[k + 2:]])
         else:
             coords = np.delete(coords, k if sharp[k + 1] else k + 1, axis=0)
     return coords
