@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from .checkpoint import SHIPPED_MASKGIT, SHIPPED_VQVAE, read_checkpoint
 from .inference import FieldDecoder, MaskGITSampler, TorchUniform
@@ -39,6 +40,10 @@ TEMPERATURE = 1.05
 #: in blocks with DECODE_MARGIN tokens of context (GroupNorm statistics make blocks differ
 #: slightly, by less than 0.1 in a few pixels at block borders).
 DECODE_BLOCK, DECODE_MARGIN = 160, 8
+#: A window's matrix products are small (256 rows): BLAS threads cost more to wake than they
+#: save, and on a machine busy with other work they wait for each other. Sampling holds BLAS
+#: to this many threads.
+BLAS_THREADS = 1
 
 
 @dataclass
@@ -127,13 +132,14 @@ def sample_tokens(gen: Generator, c: np.ndarray, shape: tuple[int, int], seed: i
     canvas = np.zeros((ny, nx, G), dtype=np.int64)
     modulations = gen.sampler.condition(gen.standardise(c), guidance)
     rng = TorchUniform(seed)
-    for window in _raster_windows((ny, nx), g, steps):
-        y, x = window.origin
-        known = canvas[y:y + g, x:x + g].reshape(g * g, G)
-        out = gen.sampler.sample(modulations, rng, steps=window.steps, known=known,
-                                 known_mask=window.known_mask, guidance=guidance,
-                                 temperature=temperature)
-        canvas[y:y + g, x:x + g] = out.reshape(g, g, G)
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        for window in _raster_windows((ny, nx), g, steps):
+            y, x = window.origin
+            known = canvas[y:y + g, x:x + g].reshape(g * g, G)
+            out = gen.sampler.sample(modulations, rng, steps=window.steps, known=known,
+                                     known_mask=window.known_mask, guidance=guidance,
+                                     temperature=temperature)
+            canvas[y:y + g, x:x + g] = out.reshape(g, g, G)
     return canvas
 
 
