@@ -40,9 +40,9 @@ TEMPERATURE = 1.05
 #: in blocks with DECODE_MARGIN tokens of context (GroupNorm statistics make blocks differ
 #: slightly, by less than 0.1 in a few pixels at block borders).
 DECODE_BLOCK, DECODE_MARGIN = 160, 8
-#: A window's matrix products are small (256 rows): BLAS threads cost more to wake than they
-#: save, and on a machine busy with other work they wait for each other. Sampling holds BLAS
-#: to this many threads.
+#: A window's matrix products are small (256 rows) and the decoder's are many: BLAS threads
+#: cost more to wake than they save, and on a machine busy with other work (scenarios built
+#: side by side) they wait for each other. Sampling and decoding hold BLAS to this many threads.
 BLAS_THREADS = 1
 
 
@@ -132,14 +132,13 @@ def sample_tokens(gen: Generator, c: np.ndarray, shape: tuple[int, int], seed: i
     canvas = np.zeros((ny, nx, G), dtype=np.int64)
     modulations = gen.sampler.condition(gen.standardise(c), guidance)
     rng = TorchUniform(seed)
-    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
-        for window in _raster_windows((ny, nx), g, steps):
-            y, x = window.origin
-            known = canvas[y:y + g, x:x + g].reshape(g * g, G)
-            out = gen.sampler.sample(modulations, rng, steps=window.steps, known=known,
-                                     known_mask=window.known_mask, guidance=guidance,
-                                     temperature=temperature)
-            canvas[y:y + g, x:x + g] = out.reshape(g, g, G)
+    for window in _raster_windows((ny, nx), g, steps):
+        y, x = window.origin
+        known = canvas[y:y + g, x:x + g].reshape(g * g, G)
+        out = gen.sampler.sample(modulations, rng, steps=window.steps, known=known,
+                                 known_mask=window.known_mask, guidance=guidance,
+                                 temperature=temperature)
+        canvas[y:y + g, x:x + g] = out.reshape(g, g, G)
     return canvas
 
 
@@ -150,8 +149,9 @@ def sample_field(gen: Generator, c: np.ndarray, width_m: float, height_m: float,
     extent (sparser networks than the data have look like scaled-up denser ones)."""
     token_m = gen.tile_m * scale / gen.grid
     shape = (math.ceil(height_m / token_m), math.ceil(width_m / token_m))
-    tokens = sample_tokens(gen, c, shape, seed, **options)
-    return decode_canvas(gen.decoder, tokens), token_m / 8
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        tokens = sample_tokens(gen, c, shape, seed, **options)
+        return decode_canvas(gen.decoder, tokens), token_m / 8
 
 
 def decode_canvas(decoder: FieldDecoder, tokens: np.ndarray, block: int = DECODE_BLOCK,
