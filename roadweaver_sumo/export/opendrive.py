@@ -30,6 +30,7 @@ from __future__ import annotations
 import itertools
 from collections import defaultdict
 from collections.abc import Iterator
+from functools import cache
 from pathlib import Path
 from xml.sax.saxutils import escape
 
@@ -197,12 +198,13 @@ def _road(hd: HDMap, road: Road, signals: list, junctions: dict[int, int]) -> li
     return _element(1, "road", _road_attributes(road.id, f"r{road.id}", -1, road.plan), children)
 
 
-def _type(road_class: str, speed: float) -> list[str]:
+@cache  # one per road class: formatted once
+def _type(road_class: str, speed: float) -> tuple[str, ...]:
     """``<type>`` ``town`` with the class speed limit (chapter "Road type") and the HD map
     road class as ``<userData>`` (chapter "Ancillary data")."""
-    return _element(2, "type", {"s": 0.0, "type": ROAD_TYPE},
+    return tuple(_element(2, "type", {"s": 0.0, "type": ROAD_TYPE},
                     [*_element(3, "speed", {"max": float(speed), "unit": "m/s"}),
-                     *_element(3, "userData", {"code": "roadClass", "value": road_class})])
+                     *_element(3, "userData", {"code": "roadClass", "value": road_class})]))
 
 
 def _lanes(hd: HDMap, road: Road) -> list[str]:
@@ -222,10 +224,14 @@ def _side(hd: HDMap, tag: str, lane_ids) -> list[str]:
     lanes = []
     for lane in map(hd.lanes.__getitem__, lane_ids):
         lanes += _element(5, "lane", {"id": xodr_lane_id(hd, lane), "type": "driving"},
-                          [*_width(float(lane.width), 0.0),
-                           *_mark("solid" if lane.index == 0 else "broken"),  # 0: outermost
-                           *_speed(float(lane.speed))])
+                          _lane_records(float(lane.width), lane.index == 0, float(lane.speed)))
     return _element(4, tag, {}, lanes)
+
+
+@cache  # the same few lines for every lane of a class: formatted once
+def _lane_records(width: float, outermost: bool, speed: float) -> tuple[str, ...]:
+    """A road lane's constant width, road mark (solid on the outermost lane) and speed."""
+    return (*_width(width, 0.0), *_mark("solid" if outermost else "broken"), *_speed(speed))
 
 
 def _mark(kind: str) -> list[str]:
