@@ -5,7 +5,7 @@ For every map: the report's own figures (``generation.hdmap.lane_overlaps`` and
 independent check of ``tests/crossing_check.py`` (centrelines and lane outlines of
 ``map.net.xml`` read with sumolib). Prints one line per map and the totals.
 
-  python bench/crossings.py [--maps 200] [--big] [--work DIR] [--jobs 2]
+  python bench/crossings.py [--maps 200] [--big] [--work DIR] [--jobs 2] [--boundary open]
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ def one_map(spec: dict, work: Path) -> dict:
     cmd = ["roadweaver-sumo", "make-scenario", "--density", str(spec["density"]),
            "--vehicles", "10", "--size", str(spec["size"]), "--style", spec["style"],
            "--skeleton", spec["skeleton"], "--seed", str(spec["seed"]), "--out", str(out),
-           "--force", "--no-validate"]
+           "--force", "--no-validate", "--boundary", spec.get("boundary", "ring")]
     proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
     if proc.returncode != 0:
         return {"name": out.name, "error": proc.stderr.strip().splitlines()[-1:]}
@@ -69,13 +69,15 @@ def main() -> None:
     parser.add_argument("--big", action="store_true", help="one 10 km map as well")
     parser.add_argument("--work", type=Path)
     parser.add_argument("--jobs", type=int, default=1, help="maps made at once")
+    parser.add_argument("--boundary", default="ring", help="the maps' boundary: ring or open")
     parser.add_argument("--skip", type=int, default=0,
                         help="leave out the first N specs (made by an earlier run)")
     args = parser.parse_args()
     work = args.work or Path(tempfile.mkdtemp(prefix="crossings-"))
     rows = []
     with ThreadPoolExecutor(args.jobs) as pool:  # each map is a make-scenario process
-        for row in pool.map(lambda spec: one_map(spec, work), specs(args.maps, args.big)[args.skip:]):
+        for row in pool.map(lambda spec: one_map(spec | {"boundary": args.boundary}, work),
+                            specs(args.maps, args.big)[args.skip:]):
             rows.append(row)
             print(json.dumps(row), flush=True)
     ok = [r for r in rows if "error" not in r]

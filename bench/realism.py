@@ -3,7 +3,7 @@ issue 35.
 
 Usage: python bench/realism.py [--maps 1] [--styles grid,radial,organic,mixed]
            [--skeletons learned,procedural] [--density-range 20-200] [--densities 30]
-           [--seed-base 900000] [--jobs 1] [--real-only] [--split-size 3] [--splits 200]
+           [--seed-base 900000] [--boundary ring] [--jobs 1] [--real-only] [--split-size 3] [--splits 200]
            [--osm-dir ../shared/data/osm] [--cgcc-dir ../shared/data/cgcc]
            [--cache bench/results/realism_real.json] [--json bench/results/realism.json]
 
@@ -99,10 +99,10 @@ def our_map(task: tuple) -> dict:
     from roadweaver_sumo.skeleton import make_skeleton
     from roadweaver_sumo.spec import ScenarioSpec
 
-    style, skeleton, seed, density = task
+    style, skeleton, seed, density, boundary = task
     record = {"style": style, "skeleton": skeleton, "seed": seed, "density": density}
     spec = ScenarioSpec(density=density, vehicles=1, width=TILE_M, height=TILE_M, seed=seed,
-                        style=style, skeleton=skeleton)
+                        style=style, skeleton=skeleton, boundary=boundary)
     try:  # a failed map is a result too; the others still count
         record["stats"] = realism_statistics(expand_skeleton(spec, make_skeleton(spec)))
     except Exception as exc:  # noqa: BLE001
@@ -187,7 +187,7 @@ def our_tasks(args, real_densities: np.ndarray) -> list[tuple]:
                     density = args.densities[i % len(args.densities)]
                 else:
                     density = round(float(rng.choice(real_densities)), 1)
-                tasks.append((style, skeleton, seed, density))
+                tasks.append((style, skeleton, seed, density, args.boundary))
                 seed += 1
     return tasks
 
@@ -306,6 +306,7 @@ def parse_args(argv=None):
     ap.add_argument("--densities", type=floats, default=None,
                     help="our maps' densities (default: those of random reference tiles)")
     ap.add_argument("--seed-base", type=int, default=900_000)
+    ap.add_argument("--boundary", default="ring", help="our maps' boundary: open or ring")
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--real-only", action="store_true", help="only the real-vs-real check")
     ap.add_argument("--split-size", type=int, default=3)

@@ -101,6 +101,7 @@ def _make_scenario(args) -> int:
         seed=args.seed,
         style=args.style,
         skeleton=args.skeleton,
+        boundary=args.boundary,
         duration=args.duration,
     )
     out = args.out if args.out is not None else Path("scenarios") / spec.name
@@ -197,7 +198,8 @@ def _make_suite(args) -> int:
     width, height = parse_size(args.size)
     suite = SuiteSpec(densities=parse_densities(args.densities), styles=parse_styles(args.styles),
                       seeds=parse_seeds(args.seeds), width=width, height=height,
-                      vehicles=args.vehicles, duration=args.duration, skeleton=args.skeleton)  # fmt: skip
+                      vehicles=args.vehicles, duration=args.duration, skeleton=args.skeleton,
+                      boundary=args.boundary)  # fmt: skip
     total = len(suite.scenarios())
     progress = Progress(total, enabled=not (args.quiet or args.json))
     start = time.monotonic()

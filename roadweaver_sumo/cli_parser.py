@@ -14,6 +14,7 @@ from pathlib import Path
 from . import __version__
 from .errors import RoadweaverError
 from .spec import (
+    BOUNDARIES,
     MAX_DENSITY,
     MAX_DURATION_S,
     MAX_SEED,
@@ -28,6 +29,8 @@ from .spec import (
 )
 
 PROG = "roadweaver-sumo"
+BOUNDARY_HELP = ("open: roads run off the map edge, as in a map cut out of a town; ring: a ring "
+                 "road just inside the border closes the map")
 # data prepare: a tile is cut from one town, and its raster is what the models train on
 MIN_TILE_M, MAX_TILE_M = 200.0, 20_000.0
 MIN_CELLS, MAX_CELLS = 8, 512  # the VQ-VAE downsamples by 8
@@ -104,6 +107,8 @@ def build_parser() -> argparse.ArgumentParser:
     make.add_argument("--style", default="mixed", metavar=_choices(STYLES), help="road style")
     make.add_argument("--skeleton", default="learned", metavar=_choices(SKELETONS),
                       help="how the arterial roads are made")
+    make.add_argument("--boundary", default="ring", metavar=_choices(BOUNDARIES),
+                      help=BOUNDARY_HELP)
     make.add_argument("--duration", type=float, default=3600.0, help=DURATION_HELP)
     make.add_argument("--out", type=Path, help="output folder (default ./scenarios/<name>)")
     make.add_argument("--force", action="store_true", help="replace an existing output folder")
@@ -152,6 +157,8 @@ def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:
     suite.add_argument("--skeleton", default=make.get_default("skeleton"),
                        metavar=_choices(SKELETONS),
                        help="how the arterial roads are made")  # same default as make-scenario
+    suite.add_argument("--boundary", default=make.get_default("boundary"),
+                       metavar=_choices(BOUNDARIES), help=BOUNDARY_HELP)
     suite.add_argument("--out", type=Path, required=True, help="suite folder")
     suite.add_argument("--force", action="store_true", help="replace an existing suite folder")
     suite.add_argument("--engine", default="local", metavar="{local,ray}",

@@ -14,6 +14,10 @@ from . import __version__
 from .errors import RoadweaverError
 
 STYLES = ("grid", "radial", "organic", "mixed")
+#: "open": roads run off the map edge, as in a map cut out of a town; "ring": a ring road
+#: just inside the border closes the map (``expand.boundary``).
+BOUNDARIES = ("open", "ring")
+LEGACY_BOUNDARY = "ring"  # of a spec or suite written before there was a choice
 SKELETONS = ("learned", "procedural")
 MAX_SIDE_M = 50_000.0
 MIN_SIDE_M = 200.0
@@ -43,6 +47,7 @@ class ScenarioSpec:
     seed: int = 0
     style: str = "mixed"
     skeleton: str = "learned"
+    boundary: str = "ring"
     duration: float = 3600.0
     geo_origin: tuple[float, float] = DEFAULT_GEO_ORIGIN
     version: str = field(default=__version__)
@@ -69,6 +74,9 @@ class ScenarioSpec:
             raise RoadweaverError(
                 f"unknown skeleton {self.skeleton!r}; choose one of {', '.join(SKELETONS)}"
             )
+        if self.boundary not in BOUNDARIES:
+            raise RoadweaverError(
+                f"unknown boundary {self.boundary!r}; choose one of {', '.join(BOUNDARIES)}")
         _check_seed("--seed", self.seed)
         _check_positive_number("--duration", self.duration)
         if not MIN_DURATION_S <= self.duration <= MAX_DURATION_S:
@@ -112,8 +120,13 @@ class ScenarioSpec:
         return np.random.default_rng([self.seed, stage])
 
     def to_json(self) -> str:
+        """The spec as ``spec.json`` writes it. A ring boundary, which every spec had before
+        there was a choice, is left unsaid, so that a suite built then rebuilds to the same
+        bytes (reading supplies it: :data:`LEGACY_BOUNDARY`)."""
         data = asdict(self)
         data["geo_origin"] = list(self.geo_origin)
+        if data["boundary"] == LEGACY_BOUNDARY:
+            del data["boundary"]
         return json.dumps(data, indent=2, sort_keys=True) + "\n"
 
     @classmethod
@@ -123,6 +136,7 @@ class ScenarioSpec:
         except (OSError, json.JSONDecodeError) as exc:
             raise RoadweaverError(f"cannot read spec {path}: {exc}") from None
         data["geo_origin"] = tuple(data.get("geo_origin", DEFAULT_GEO_ORIGIN))
+        data.setdefault("boundary", LEGACY_BOUNDARY)
         known = {f for f in cls.__dataclass_fields__}
         return cls(**{k: v for k, v in data.items() if k in known})
 

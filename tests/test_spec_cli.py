@@ -24,6 +24,17 @@ def test_spec_round_trips_through_json(tmp_path):
     assert json.loads(path.read_text())["density"] == 25
 
 
+def test_an_open_boundary_is_written_and_a_ring_left_unsaid(tmp_path):
+    """A spec.json written before there was a boundary choice reads as a ring map, and a ring
+    spec writes the same bytes as then; an open spec says so and reads back open."""
+    ring, opened = (ScenarioSpec(density=25, vehicles=100, boundary=b) for b in ("ring", "open"))
+    assert "boundary" not in json.loads(ring.to_json())
+    for spec in (ring, opened):
+        path = tmp_path / f"{spec.boundary}.json"
+        path.write_text(spec.to_json())
+        assert ScenarioSpec.from_json_file(path) == spec
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
@@ -32,6 +43,8 @@ def test_spec_round_trips_through_json(tmp_path):
         (["--density", "30", "--vehicles", "5", "--size", "0"], "map width must be > 0"),
         (["--density", "30", "--vehicles", "5", "--size", "50"], "width 50 m is outside"),
         (["--density", "30", "--vehicles", "5", "--style", "wavy"], "unknown style 'wavy'"),
+        (["--density", "30", "--vehicles", "5", "--boundary", "square"],
+         "unknown boundary 'square'"),
         (["--density", "nan", "--vehicles", "5"], "density must be > 0"),
         (["--density", "abc", "--vehicles", "5"], "invalid float value"),
         (["--vehicles", "5"], "required: --density"),

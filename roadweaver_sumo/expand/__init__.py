@@ -13,6 +13,7 @@ from ..skeleton import Skeleton
 from ..skeleton.procedural import block_size
 from ..spec import STAGE_FILL, STAGE_GROWTH, ScenarioSpec
 from .bends import cut_sharp_bends
+from .boundary import open_boundary, opened_road_nodes
 from .cleanup import MIN_BLOCK_AREA, clean
 from .fill import fill_to_density, prune_to_density
 from .growth import grow_collectors, skeleton_tensor_field
@@ -29,7 +30,7 @@ DENSITY_LIMIT = 0.10  # beyond this the request counts as impossible (issue 2: w
 
 def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     """Growth -> A* reconnection (dead ends, then whole components) -> the ring's component ->
-    fill/prune to the target density."""
+    fill/prune to the target density -> the ring opened (``spec.boundary`` "open")."""
     field = skeleton_tensor_field(skeleton)
     collectors = grow_collectors(spec, skeleton, field, spec.rng(STAGE_GROWTH))
     roads = list(zip(skeleton.polylines, skeleton.road_classes()))
@@ -44,11 +45,11 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     if links:
         G = _renode(G, [(c, "collector") for c in links])
     clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN)
-    target = spec.target_road_nodes
+    target = aim = spec.target_road_nodes
     rng = spec.rng(STAGE_FILL)
     for _ in range(DENSITY_ROUNDS):
-        fill_to_density(G, target, field, rng, MIN_EDGE, MIN_ANGLE, stub=stub)
-        prune_to_density(G, target, stub)
+        fill_to_density(G, aim, field, rng, MIN_EDGE, MIN_ANGLE, stub=stub)
+        prune_to_density(G, aim, stub)
         # The fill keeps the graph planar, but the clean-up before it may not have: merging
         # junctions that no road joins moves roads, which can then cross a neighbour. Such
         # a graph is noded again.
@@ -56,8 +57,12 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
             G = _renode(G, [])
         clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN,
               min_block_area=MIN_BLOCK_AREA)
-        if abs(road_node_count(G) - target) <= max(1, DENSITY_TOLERANCE * target):
+        kept = opened_road_nodes(G) if spec.boundary == "open" else road_node_count(G)
+        if abs(kept - target) <= max(1, DENSITY_TOLERANCE * target):
             break
+        aim = target + road_node_count(G) - kept  # the fill makes up what opening takes
+    if spec.boundary == "open":
+        open_boundary(G)
     cut_sharp_bends(G)
     _check_density(spec, road_node_count(G))
     return _relabel(G)

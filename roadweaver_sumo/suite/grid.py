@@ -11,7 +11,7 @@ import re
 from dataclasses import asdict, dataclass
 
 from ..errors import RoadweaverError
-from ..spec import ScenarioSpec
+from ..spec import LEGACY_BOUNDARY, ScenarioSpec
 
 MAX_SCENARIOS = 10_000  # a larger grid is almost certainly a typo such as --seeds 0-99999
 
@@ -28,6 +28,7 @@ class SuiteSpec:
     vehicles: int = 500
     duration: float = 3600.0
     skeleton: str = "procedural"
+    boundary: str = "ring"
 
     def __post_init__(self) -> None:
         _normalise(self)
@@ -50,7 +51,8 @@ class SuiteSpec:
     def scenarios(self) -> list[ScenarioSpec]:
         return [
             ScenarioSpec(density=d, vehicles=self.vehicles, width=self.width, height=self.height,
-                         seed=s, style=style, skeleton=self.skeleton, duration=self.duration)
+                         seed=s, style=style, skeleton=self.skeleton, duration=self.duration,
+                         boundary=self.boundary)
             for d in self.densities for style in self.styles for s in self.seeds
         ]  # fmt: skip
 
@@ -67,7 +69,7 @@ class SuiteSpec:
         unknown = sorted(set(data) - known)
         if unknown:
             raise RoadweaverError(f"manifest: unknown suite field {unknown[0]!r}")
-        values = dict(data)
+        values = {"boundary": LEGACY_BOUNDARY, **data}
         for name in ("densities", "styles", "seeds"):
             if not isinstance(values.get(name), list):
                 raise RoadweaverError(f"manifest: suite field {name!r} must be a list")

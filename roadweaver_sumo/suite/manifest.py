@@ -15,7 +15,7 @@ from pathlib import Path, PurePosixPath
 
 from .. import __version__
 from ..errors import RoadweaverError
-from ..spec import DEFAULT_GEO_ORIGIN, ScenarioSpec
+from ..spec import DEFAULT_GEO_ORIGIN, LEGACY_BOUNDARY, ScenarioSpec
 from ..validate.report import THRESHOLDS
 from .grid import SuiteSpec
 
@@ -160,6 +160,7 @@ def spec_from_entry(entry: dict, where: str) -> ScenarioSpec:
             and all(isinstance(v, (int, float)) and math.isfinite(v) for v in origin)):
         raise RoadweaverError(f"{where}: geo_origin must be [lat, lon]")
     data["geo_origin"] = tuple(origin)
+    data.setdefault("boundary", LEGACY_BOUNDARY)
     try:
         return ScenarioSpec(**{k: v for k, v in data.items() if k in known})
     except (TypeError, ValueError) as exc:
