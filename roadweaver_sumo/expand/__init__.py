@@ -60,7 +60,8 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
         kept = opened_road_nodes(G) if spec.boundary == "open" else road_node_count(G)
         if abs(kept - target) <= max(1, DENSITY_TOLERANCE * target):
             break
-        aim = target + road_node_count(G) - kept  # the fill makes up what opening takes
+        if spec.boundary == "open":  # what opening takes varies: aim by the error left
+            aim += target - kept
     if spec.boundary == "open":
         open_boundary(G)
     cut_sharp_bends(G)
