@@ -1,6 +1,6 @@
 """Robustness sweep (issue 5): random specs must give a valid scenario or a clear refusal.
 
-Usage: python bench/robustness.py [--count 200] [--seed 0] [--skeleton procedural]
+Usage: python bench/robustness.py [--count 200] [--seed 0] [--skeleton procedural] [--boundary ring]
                                   [--specs A-B] [--json bench/results/robustness_<skeleton>.json]
 
 Each spec (sizes 0.5-5 km, squares and rectangles; densities 5-120 log-uniform; every style;
@@ -44,11 +44,11 @@ def random_specs(count: int, seed: int) -> list[dict]:
     return specs
 
 
-def check(spec_args: dict, skeleton: str) -> dict:
+def check(spec_args: dict, skeleton: str, boundary: str = "ring") -> dict:
     """Build one spec and judge it; never raises."""
     start = time.perf_counter()
     try:
-        spec = ScenarioSpec(vehicles=VEHICLES, skeleton=skeleton, **spec_args)
+        spec = ScenarioSpec(vehicles=VEHICLES, skeleton=skeleton, boundary=boundary, **spec_args)
     except RoadweaverError as exc:
         return {"verdict": "refused", "reason": str(exc), "seconds": 0.0}
     try:
@@ -81,6 +81,7 @@ def main() -> None:
     ap.add_argument("--count", type=int, default=200)
     ap.add_argument("--seed", type=int, default=0, help="seed of the spec generator")
     ap.add_argument("--skeleton", default="procedural")
+    ap.add_argument("--boundary", default="ring", help="ring or open")
     ap.add_argument("--specs", help="only specs A-B of the drawn list (to split a sweep over "
                     "processes; the specs are the same as in a whole run)")
     ap.add_argument("--json", type=Path)
@@ -93,7 +94,7 @@ def main() -> None:
     for k, spec_args in enumerate(random_specs(args.count, args.seed)):
         if not first <= k <= last:
             continue
-        result = {"spec": spec_args, **check(spec_args, args.skeleton)}
+        result = {"spec": spec_args, **check(spec_args, args.skeleton, args.boundary)}
         results.append(result)
         print(f"{k:3d} {result['verdict']:8s} {result['seconds']:6.1f} s  {spec_args}"
               + (f"  {result['reason']}" if result["reason"] else ""), flush=True)
