@@ -135,10 +135,15 @@ class ScenarioSpec:
             data = json.loads(Path(path).read_text(encoding="utf-8"))
         except (OSError, json.JSONDecodeError) as exc:
             raise RoadweaverError(f"cannot read spec {path}: {exc}") from None
+        return cls.from_dict(data)
+
+    @classmethod
+    def from_dict(cls, data: dict) -> ScenarioSpec:
+        """The spec of a parsed ``spec.json`` or manifest entry: fields this version does not
+        know are ignored, a missing boundary is the ring every spec had before the choice."""
+        data = {"boundary": LEGACY_BOUNDARY, **data}
         data["geo_origin"] = tuple(data.get("geo_origin", DEFAULT_GEO_ORIGIN))
-        data.setdefault("boundary", LEGACY_BOUNDARY)
-        known = {f for f in cls.__dataclass_fields__}
-        return cls(**{k: v for k, v in data.items() if k in known})
+        return cls(**{k: v for k, v in data.items() if k in cls.__dataclass_fields__})
 
 
 def parse_size(text: str) -> tuple[float, float]:

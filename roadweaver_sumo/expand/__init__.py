@@ -13,7 +13,7 @@ from ..skeleton import Skeleton
 from ..skeleton.procedural import block_size
 from ..spec import STAGE_FILL, STAGE_GROWTH, ScenarioSpec
 from .bends import cut_sharp_bends
-from .boundary import open_boundary, opened_road_nodes
+from .boundary import opened
 from .cleanup import MIN_BLOCK_AREA, clean
 from .fill import fill_to_density, prune_to_density
 from .growth import grow_collectors, skeleton_tensor_field
@@ -57,13 +57,13 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
             G = _renode(G, [])
         clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN,
               min_block_area=MIN_BLOCK_AREA)
-        kept = opened_road_nodes(G) if spec.boundary == "open" else road_node_count(G)
+        final = opened(G) if spec.boundary == "open" else G
+        kept = road_node_count(final)
         if abs(kept - target) <= max(1, DENSITY_TOLERANCE * target):
             break
         if spec.boundary == "open":  # what opening takes varies: aim by the error left
             aim += target - kept
-    if spec.boundary == "open":
-        open_boundary(G)
+    G = final
     cut_sharp_bends(G)
     _check_density(spec, road_node_count(G))
     return _relabel(G)

@@ -98,7 +98,8 @@ def without_jogs(coords: np.ndarray, max_turn_deg: float, least_radius: float) -
         legs = np.hypot(*np.diff(coords, axis=0).T)
         short = legs < np.maximum(needs[:-1], needs[1:])
         short[[0, -1]] = False  # a road's end node stays
-        short &= [coords[k:k + 2].tobytes() not in kept for k in range(len(legs))]
+        if kept:
+            short &= [coords[k:k + 2].tobytes() not in kept for k in range(len(legs))]
         if not short.any():
             break
         k = np.flatnonzero(short)[np.argmin(legs[short])]

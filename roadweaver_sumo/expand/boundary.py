@@ -9,18 +9,18 @@ is cut out of a town: everything within :data:`BAND` of the ring goes (the ring,
 roads that ran along it), every road that crossed into that band runs on to the map edge and
 ends there as a fringe road, and pieces that only the ring held to the map (a road cutting a
 corner, a small tree off the ring) are left outside. The density fill aims at the road nodes
-that remain (:func:`opened_road_nodes`).
+that remain (the road nodes of :func:`opened`).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import networkx as nx
 import numpy as np
 import shapely
 
-from ..metrics import road_node_count
 from ..roadgraph import add_road, edge_coords, edge_list
 from ..skeleton.model import perimeter
 from .bends import round_corners
@@ -38,8 +38,10 @@ def open_boundary(G: nx.Graph) -> None:
     its inner side and taken square on to the nearest map edge, a cut end closer than a
     clearance to another one goes back to its road's junction, nodes in the band and every
     piece but the main one go."""
-    band = shapely.Polygon(perimeter(G.graph["width"], G.graph["height"])).buffer(BAND)
-    band = band.difference(band.buffer(-2 * BAND))
+    ring = shapely.Polygon(perimeter(G.graph["width"], G.graph["height"]))
+    inside = ring.buffer(-BAND)
+    band = ring.buffer(BAND).difference(inside)
+    new_ids = itertools.count(max(G, default=-1) + 1)
     cut_ends = []
     for u, v, data in edge_list(G):
         line = shapely.LineString(data["coords"])
@@ -47,37 +49,39 @@ def open_boundary(G: nx.Graph) -> None:
             continue
         G.remove_edge(u, v)
         for part in shapely.get_parts(line.difference(band)):
-            if part.is_empty:
-                continue
-            cut_ends += _reattach(G, u, v, np.asarray(part.coords), data["road_class"])
+            if not part.is_empty:
+                cut_ends += _reattach(G, u, v, np.asarray(part.coords), data["road_class"],
+                                      new_ids)
     _drop_crowded_ends(G, cut_ends)
-    inside = shapely.Polygon(band.interiors[0])
-    G.remove_nodes_from([n for n in list(G) if not inside.covers(shapely.Point(G.nodes[n]["xy"]))
-                         and n not in cut_ends])
+    nodes = list(G)
+    outside = ~shapely.covers(inside, shapely.points([G.nodes[n]["xy"] for n in nodes]))
+    ends = set(cut_ends)
+    G.remove_nodes_from([n for n, out in zip(nodes, outside.tolist(), strict=True)
+                         if out and n not in ends])
     for comp in components_main_first(G)[1:]:
         G.remove_nodes_from(comp)
     for n in sorted(n for n in cut_ends if n in G):
         _to_edge(G, next(iter(G.neighbors(n))), n)
 
 
-def opened_road_nodes(G: nx.Graph) -> int:
-    """The road nodes ``G`` keeps once its boundary is opened (:func:`open_boundary` on a
-    copy): what the density fill aims at on a map with an open boundary."""
+def opened(G: nx.Graph) -> nx.Graph:
+    """A copy of ``G`` with its boundary opened (:func:`open_boundary`)."""
     H = G.copy()
     open_boundary(H)
-    return road_node_count(H)
+    return H
 
 
-def _reattach(G: nx.Graph, u, v, coords: np.ndarray, road_class: str) -> list:
+def _reattach(G: nx.Graph, u, v, coords: np.ndarray, road_class: str, new_ids) -> list:
     """Add the part ``coords`` of road u-v left outside the band: an end at u or v stays on
-    that node, an end on the band becomes a new node. Returns the new nodes."""
+    that node, an end on the band becomes a new node (ids from ``new_ids``). Returns the new
+    nodes."""
     new = []
     ends = []
     for point in (coords[0], coords[-1]):
         node = next((n for n in (u, v) if np.allclose(G.nodes[n]["xy"], point, atol=1e-3)),
                     None)
         if node is None:
-            node = max(G) + 1
+            node = next(new_ids)
             G.add_node(node, xy=(float(point[0]), float(point[1])))
             new.append(node)
         ends.append(node)
@@ -90,10 +94,10 @@ def _drop_crowded_ends(G: nx.Graph, cut_ends: list) -> None:
     """Of two cut ends closer than their roads' clearance (two roads that met at one ring
     junction), the road of the lower class (else the later one) goes back to its junction."""
     G.remove_nodes_from([n for n in cut_ends if G.degree(n) != 1])  # a part too short to be a road
-    ends = sorted((-CLASS_RANK[_road_class(G, n)], n, _road_class(G, n), G.nodes[n]["xy"])
-                  for n in cut_ends if n in G)
+    classes = {n: _road_class(G, n) for n in cut_ends if n in G}
     kept: list = []
-    for _, n, road_class, xy in ends:
+    for n in sorted(classes, key=lambda n: (-CLASS_RANK[classes[n]], n)):
+        road_class, xy = classes[n], G.nodes[n]["xy"]
         if any(math.dist(xy, other) < clearance(road_class, cls) for cls, other in kept):
             G.remove_node(n)
         else:

@@ -133,11 +133,12 @@ def _filleted(roads: list[Road], cuts: list[tuple[float, float, float]], radii: 
 def _past_end_bends(plan: list[Piece], least: float, s0: float, s1: float,
                     length: float) -> tuple[float, float]:
     """The lane section's ends moved past the bends tighter than ``least`` that begin (end)
-    within ``END_BEND`` of them (into the junction, whose connectors take the bend), as far as a lane section of
-    ``MIN_SECTION_SHARE`` of the road is left. Such a bend is what is left of a road-graph bend
-    that the junction trim cut into; at a lane section's end it folds the lanes and reads as a
-    sharp turn to netconvert. The trims' own cap (``MAX_TRIM_SHARE``) may be passed at one
-    end: on a short road whose bend lies next to one junction, that junction takes it."""
+    within ``END_BEND`` of them (into the junction, whose connectors take the bend), as far as
+    a lane section of ``MIN_SECTION_SHARE`` of the road is left. Such a bend is what is left of
+    a road-graph bend that the junction trim cut into; at a lane section's end it folds the
+    lanes and reads as a sharp turn to netconvert. The trims' own cap (``MAX_TRIM_SHARE``) may
+    be passed at one end: on a short road whose bend lies next to one junction, that junction
+    takes it."""
     tight = [p for p in plan if p.kind == "arc" and abs(p.curvature) * least > 1.0 + 1e-9]
     if not tight:
         return s0, s1

@@ -15,7 +15,7 @@ from pathlib import Path, PurePosixPath
 
 from .. import __version__
 from ..errors import RoadweaverError
-from ..spec import DEFAULT_GEO_ORIGIN, LEGACY_BOUNDARY, ScenarioSpec
+from ..spec import DEFAULT_GEO_ORIGIN, ScenarioSpec
 from ..validate.report import THRESHOLDS
 from .grid import SuiteSpec
 
@@ -153,16 +153,13 @@ def _check_entry(path: Path, name: str, entry) -> None:
 
 def spec_from_entry(entry: dict, where: str) -> ScenarioSpec:
     """The ``ScenarioSpec`` of a manifest entry (``where`` prefixes the error message)."""
-    data = dict(entry["spec"])
-    known = set(ScenarioSpec.__dataclass_fields__)
+    data = entry["spec"]
     origin = data.get("geo_origin", DEFAULT_GEO_ORIGIN)
     if not (isinstance(origin, (list, tuple)) and len(origin) == 2
             and all(isinstance(v, (int, float)) and math.isfinite(v) for v in origin)):
         raise RoadweaverError(f"{where}: geo_origin must be [lat, lon]")
-    data["geo_origin"] = tuple(origin)
-    data.setdefault("boundary", LEGACY_BOUNDARY)
     try:
-        return ScenarioSpec(**{k: v for k, v in data.items() if k in known})
+        return ScenarioSpec.from_dict(data)
     except (TypeError, ValueError) as exc:
         raise RoadweaverError(f"{where}: bad spec: {exc}") from None
     except RoadweaverError as exc:
