@@ -882,3 +882,15 @@ def test_an_open_boundary_leaves_no_frame_and_roads_running_off_the_edge(skeleto
                and min(*opened.nodes[n]["xy"], *(1500 - np.array(opened.nodes[n]["xy"]))) < 1e-6]
     assert len(on_edge) >= 8
     assert nx.is_connected(opened)
+
+
+@pytest.mark.parametrize("seed", [0, 6, 15])
+def test_a_sparse_learned_map_opened_meets_its_density(seed):
+    """At 10 road nodes/km² a learned skeleton is a tree hung on the ring: pruning it in the
+    ring's presence left parts only the ring held, opening dropped them (6: 40 -> 20 road
+    nodes) and the density failed; an opened map too dense for its tree (0: 43) could not be
+    pruned. Now both land within 5 % and the opened map is one network."""
+    spec = ScenarioSpec(density=10, vehicles=10, seed=seed, boundary="open")
+    G = expand_skeleton(spec, make_skeleton(spec))
+    assert abs(road_node_count(G) - spec.target_road_nodes) <= 0.05 * spec.target_road_nodes
+    assert nx.is_connected(G)

@@ -8,13 +8,13 @@ import shapely
 
 from ..errors import RoadweaverError
 from ..metrics import road_node_count
-from ..roadgraph import add_road, edge_coords, edge_list, sorted_edge_list
+from ..roadgraph import add_road, edge_coords, edge_length, edge_list, sorted_edge_list
 from ..skeleton import Skeleton
 from ..skeleton.procedural import block_size
 from ..spec import STAGE_FILL, STAGE_GROWTH, ScenarioSpec
-from .bends import cut_sharp_bends
-from .boundary import opened
-from .cleanup import MIN_BLOCK_AREA, clean
+from .bends import cut_sharp_bends, smooth_bends
+from .boundary import on_map_edge, opened, spare_when_opened
+from .cleanup import MIN_BLOCK_AREA, clean, dissolve_degree_two
 from .fill import fill_to_density, prune_to_density
 from .growth import grow_collectors, skeleton_tensor_field
 from .planar import build_planar_graph
@@ -49,7 +49,8 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     rng = spec.rng(STAGE_FILL)
     for _ in range(DENSITY_ROUNDS):
         fill_to_density(G, aim, field, rng, MIN_EDGE, MIN_ANGLE, stub=stub)
-        prune_to_density(G, aim, stub)
+        prune_to_density(G, aim, stub,
+                         spare=spare_when_opened(G) if spec.boundary == "open" else None)
         # The fill keeps the graph planar, but the clean-up before it may not have: merging
         # junctions that no road joins moves roads, which can then cross a neighbour. Such
         # a graph is noded again.
@@ -57,7 +58,9 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
             G = _renode(G, [])
         clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN,
               min_block_area=MIN_BLOCK_AREA)
-        final = opened(G) if spec.boundary == "open" else G
+        final = G
+        if spec.boundary == "open":
+            final = _opened_to_density(G, target, stub)
         kept = road_node_count(final)
         if abs(kept - target) <= max(1, DENSITY_TOLERANCE * target):
             break
@@ -67,6 +70,35 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     cut_sharp_bends(G)
     _check_density(spec, road_node_count(G))
     return _relabel(G)
+
+
+def _opened_to_density(G: nx.Graph, target: int, stub: float) -> nx.Graph:
+    """``G`` opened (:func:`.boundary.opened`) and, where opening left more road nodes than
+    ``target``, pruned to it: what opening takes varies from map to map, what pruning the
+    opened map takes does not."""
+    H = opened(G)
+    if road_node_count(H) > target:
+        prune_to_density(H, target)
+        _prune_fringe(H, target)
+        dissolve_degree_two(H, MIN_ANGLE)
+        smooth_bends(H)
+    return H
+
+
+def _prune_fringe(G: nx.Graph, target: int) -> None:
+    """Remove fringe roads (a dead end at the map edge, a junction at the other end) that are
+    not arterials, shortest first, while above ``target`` road nodes: what is left to prune in
+    a sparse opened map whose roads form a tree."""
+    count = road_node_count(G)
+    ends = [u for u, degree in G.degree() if degree == 1 and on_map_edge(G, u)]
+    fringe = sorted((edge_length(G, u, v), u, v) for u in ends for v in G.neighbors(u)
+                    if G.edges[u, v]["road_class"] != "arterial")
+    for _, u, v in fringe:
+        if count <= target:
+            return
+        if G.degree(v) >= 3:
+            G.remove_node(u)
+            count -= 1 + (G.degree(v) == 2)
 
 
 def _check_density(spec: ScenarioSpec, achieved: int) -> None:

@@ -9,13 +9,16 @@ is cut out of a town: everything within :data:`BAND` of the ring goes (the ring,
 roads that ran along it), every road that crossed into that band runs on to the map edge and
 ends there as a fringe road, and pieces that only the ring held to the map (a road cutting a
 corner, a small tree off the ring) are left outside. The density fill aims at the road nodes
-that remain (the road nodes of :func:`opened`).
+that remain (the road nodes of :func:`opened`); pruning spares what holds the opened map
+together (:func:`spare_when_opened`), and an opened map with too many road nodes is pruned
+itself.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 
 import networkx as nx
 import numpy as np
@@ -25,8 +28,9 @@ from ..roadgraph import add_road, edge_coords, edge_list
 from ..skeleton.model import perimeter
 from .bends import round_corners
 from .clearance import clearance
+from .fill import on_cycle
 from .perimeter import components_main_first
-from .planar import CLASS_RANK
+from .planar import CLASS_RANK, road_lines
 
 #: metres either side of the ring's centre line that go with it: more than a rounded corner
 #: of the ring strays from it, less than a clearance (no other road runs that close to it).
@@ -38,9 +42,7 @@ def open_boundary(G: nx.Graph) -> None:
     its inner side and taken square on to the nearest map edge, a cut end closer than a
     clearance to another one goes back to its road's junction, nodes in the band and every
     piece but the main one go."""
-    ring = shapely.Polygon(perimeter(G.graph["width"], G.graph["height"]))
-    inside = ring.buffer(-BAND)
-    band = ring.buffer(BAND).difference(inside)
+    inside, band = _band(G)
     new_ids = itertools.count(max(G, default=-1) + 1)
     cut_ends = []
     for u, v, data in edge_list(G):
@@ -69,6 +71,34 @@ def opened(G: nx.Graph) -> nx.Graph:
     H = G.copy()
     open_boundary(H)
     return H
+
+
+def spare_when_opened(G: nx.Graph) -> Callable[[int, int], bool]:
+    """Whether the opened map holds together without road u-v (for ``prune_to_density``): a
+    road into the ring's band always does (it becomes a fringe road, which holds nothing
+    together), any other road if its ends stay connected by roads clear of the band. Without
+    this, pruning in the ring's presence leaves parts that only the ring holds to the map, and
+    opening drops them (sparse learned maps lost up to half their road nodes at once). Roads
+    are only removed from ``G`` while the answer is in use."""
+    edges = edge_list(G)
+    _, band = _band(G)
+    hits = shapely.intersects(road_lines(edges), band).tolist() if edges else []
+    into_band = {frozenset((u, v)) for (u, v, _), hit in zip(edges, hits, strict=True) if hit}
+    clear = nx.subgraph_view(G, filter_edge=lambda u, v: frozenset((u, v)) not in into_band)
+    return lambda u, v: frozenset((u, v)) in into_band or on_cycle(clear, u, v)
+
+
+def on_map_edge(G: nx.Graph, n) -> bool:
+    """Whether node ``n`` lies on the map's edge (a fringe road's end: :func:`_to_edge`)."""
+    x, y = G.nodes[n]["xy"]
+    return min(x, y, G.graph["width"] - x, G.graph["height"] - y) < 1e-6
+
+
+def _band(G: nx.Graph) -> tuple[shapely.Polygon, shapely.Polygon]:
+    """The map inside the ring's band, and the band: :data:`BAND` either side of the ring."""
+    ring = shapely.Polygon(perimeter(G.graph["width"], G.graph["height"]))
+    inside = ring.buffer(-BAND)
+    return inside, ring.buffer(BAND).difference(inside)
 
 
 def _reattach(G: nx.Graph, u, v, coords: np.ndarray, road_class: str, new_ids) -> list:

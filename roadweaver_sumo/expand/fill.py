@@ -16,6 +16,7 @@ first.
 from __future__ import annotations
 
 import heapq
+from collections.abc import Callable
 from functools import partial
 
 import networkx as nx
@@ -114,27 +115,30 @@ def stub_loss(G: nx.Graph, stub: float) -> int:
     return loss
 
 
-def prune_to_density(G: nx.Graph, target: int, stub: float = 0.0) -> None:
+def prune_to_density(G: nx.Graph, target: int, stub: float = 0.0,
+                     spare: Callable[[int, int], bool] | None = None) -> None:
     """Remove non-bridge local roads, shortest first, while above ``target`` + 1 road nodes
-    (counted as the clean-up will leave them: :func:`stub_loss`).
+    (counted as the clean-up will leave them: :func:`stub_loss`). ``spare(u, v)`` says
+    whether the map holds together without road u-v (default: it is not a bridge of ``G``).
 
     One pass over the roads sorted once: removing a road only lowers degrees and only turns
     roads into bridges, so a road that cannot go now never can, and each road is tested with a
     local search for another path between its ends rather than a bridge search of the graph."""
     count = road_node_count(G) - stub_loss(G, stub)
+    spare = spare or partial(on_cycle, G)
     candidates = sorted(
         (edge_length(G, u, v), u, v) for u, v in G.edges if G.edges[u, v]["road_class"] != "arterial"
     )
     for _, u, v in candidates:
         if count <= target + 1:
             return
-        if G.degree(u) < 3 or G.degree(v) < 3 or not _on_cycle(G, u, v):
+        if G.degree(u) < 3 or G.degree(v) < 3 or not spare(u, v):
             continue
         G.remove_edge(u, v)
         count += sum((G.degree(n) != 2) - (G.degree(n) + 1 != 2) for n in (u, v))
 
 
-def _on_cycle(G: nx.Graph, u, v) -> bool:
+def on_cycle(G: nx.Graph, u, v) -> bool:
     """Whether u and v stay connected without the road u-v (it is not a bridge): a
     bidirectional breadth-first search, which stays local around a road on a small cycle."""
     seen = ({u}, {v})
