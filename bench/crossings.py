@@ -5,7 +5,7 @@ For every map: the report's own figures (``generation.hdmap.lane_overlaps`` and
 independent check of ``tests/crossing_check.py`` (centrelines and lane outlines of
 ``map.net.xml`` read with sumolib). Prints one line per map and the totals.
 
-  python bench/crossings.py [--maps 200] [--big] [--work DIR] [--jobs 2] [--boundary open]
+  python bench/crossings.py [--maps 200] [--big] [--work DIR] [--jobs 2] [--boundary ring]
 """
 
 from __future__ import annotations
@@ -69,7 +69,7 @@ def main() -> None:
     parser.add_argument("--big", action="store_true", help="one 10 km map as well")
     parser.add_argument("--work", type=Path)
     parser.add_argument("--jobs", type=int, default=1, help="maps made at once")
-    parser.add_argument("--boundary", default="ring", help="the maps' boundary: ring or open")
+    parser.add_argument("--boundary", default="open", help="the maps' boundary: open or ring")
     parser.add_argument("--skip", type=int, default=0,
                         help="leave out the first N specs (made by an earlier run)")
     args = parser.parse_args()

@@ -1,7 +1,7 @@
 """Quality sweep of issue 2: densities x seeds at 2 km, 500 vehicles over 1 h, full validation.
 
 Usage: python bench/quality_sweep.py [--densities 10,20,30,40,60] [--seeds 0-4] [--styles mixed]
-       [--skeleton learned|procedural] [--boundary ring|open]
+       [--skeleton learned|procedural] [--boundary open|ring]
 Prints one row per scenario and a summary against the issue's thresholds; writes JSON next to it.
 """
 
@@ -33,7 +33,7 @@ def main() -> None:
     ap.add_argument("--styles", default="mixed")
     ap.add_argument("--size", type=float, default=2000.0)
     ap.add_argument("--skeleton", default="learned", help="learned or procedural")
-    ap.add_argument("--boundary", default="ring", help="ring or open")
+    ap.add_argument("--boundary", default="open", help="open or ring")
     ap.add_argument("--vehicles", type=int, default=500)
     ap.add_argument("--json", type=Path, default=Path("bench/results/quality_sweep.json"))
     args = ap.parse_args()

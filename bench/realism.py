@@ -306,7 +306,7 @@ def parse_args(argv=None):
     ap.add_argument("--densities", type=floats, default=None,
                     help="our maps' densities (default: those of random reference tiles)")
     ap.add_argument("--seed-base", type=int, default=900_000)
-    ap.add_argument("--boundary", default="ring", help="our maps' boundary: open or ring")
+    ap.add_argument("--boundary", default="open", help="our maps' boundary: open or ring")
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--real-only", action="store_true", help="only the real-vs-real check")
     ap.add_argument("--split-size", type=int, default=3)

@@ -81,7 +81,7 @@ def main() -> None:
     ap.add_argument("--count", type=int, default=200)
     ap.add_argument("--seed", type=int, default=0, help="seed of the spec generator")
     ap.add_argument("--skeleton", default="procedural")
-    ap.add_argument("--boundary", default="ring", help="ring or open")
+    ap.add_argument("--boundary", default="open", help="open or ring")
     ap.add_argument("--specs", help="only specs A-B of the drawn list (to split a sweep over "
                     "processes; the specs are the same as in a whole run)")
     ap.add_argument("--json", type=Path)

@@ -107,7 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
     make.add_argument("--style", default="mixed", metavar=_choices(STYLES), help="road style")
     make.add_argument("--skeleton", default="learned", metavar=_choices(SKELETONS),
                       help="how the arterial roads are made")
-    make.add_argument("--boundary", default="ring", metavar=_choices(BOUNDARIES),
+    make.add_argument("--boundary", default="open", metavar=_choices(BOUNDARIES),
                       help=BOUNDARY_HELP)
     make.add_argument("--duration", type=float, default=3600.0, help=DURATION_HELP)
     make.add_argument("--out", type=Path, help="output folder (default ./scenarios/<name>)")

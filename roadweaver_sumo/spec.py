@@ -47,7 +47,7 @@ class ScenarioSpec:
     seed: int = 0
     style: str = "mixed"
     skeleton: str = "learned"
-    boundary: str = "ring"
+    boundary: str = "open"
     duration: float = 3600.0
     geo_origin: tuple[float, float] = DEFAULT_GEO_ORIGIN
     version: str = field(default=__version__)

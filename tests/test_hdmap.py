@@ -531,7 +531,7 @@ def test_a_lane_section_starts_past_a_tight_bend_next_to_its_junction():
 
 def test_a_turn_that_still_folds_in_a_junction_as_wide_as_its_roads_allow_is_not_offered(
         monkeypatch):
-    """A procedural grid map (1 km, density 22, seed 5012) where an arterial's lane ends 3 m
+    """A procedural grid map (1 km, density 22, seed 5012, ring) where an arterial's lane ends 3 m
     short of where a collector's lanes meet it at 42 degrees: the 138-degree right turn
     between them folds however wide the junction (the collector is 31 m long, its trim
     capped). The turn is banned and the arterial lane it entered is entered by the
@@ -544,7 +544,8 @@ def test_a_turn_that_still_folds_in_a_junction_as_wide_as_its_roads_allow_is_not
     from roadweaver_sumo.spec import ScenarioSpec
 
     spec = ScenarioSpec(width=1000, height=1000, density=22, style="grid",
-                        skeleton="procedural", seed=5012, vehicles=10)
+                        skeleton="procedural", seed=5012, vehicles=10,
+                        boundary="ring")
     hd = generate_map(spec)
     assert folding_turns(hd.connectors()) == []
     assert lane_reachability(hd) == 1.0
