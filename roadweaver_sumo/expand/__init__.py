@@ -15,8 +15,10 @@ from ..spec import STAGE_FILL, STAGE_GROWTH, ScenarioSpec
 from .bends import cut_sharp_bends, smooth_bends
 from .boundary import on_map_edge, opened, spare_when_opened
 from .cleanup import MIN_BLOCK_AREA, clean, dissolve_degree_two
+from .dead_ends import add_dead_ends
 from .fill import fill_to_density, prune_to_density
 from .growth import grow_collectors, skeleton_tensor_field
+from .local_density import block_weight
 from .planar import build_planar_graph
 from .reconnect import link_components, reconnect_dangles
 
@@ -30,7 +32,8 @@ DENSITY_LIMIT = 0.10  # beyond this the request counts as impossible (issue 2: w
 
 def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     """Growth -> A* reconnection (dead ends, then whole components) -> the ring's component ->
-    fill/prune to the target density -> the ring opened (``spec.boundary`` "open")."""
+    fill/prune to the target density -> the ring opened (``spec.boundary`` "open"; the fill
+    then follows the road field, :mod:`.local_density`) -> dead-end streets (open only)."""
     field = skeleton_tensor_field(skeleton)
     collectors = grow_collectors(spec, skeleton, field, spec.rng(STAGE_GROWTH))
     roads = list(zip(skeleton.polylines, skeleton.road_classes()))
@@ -47,8 +50,13 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN)
     target = aim = spec.target_road_nodes
     rng = spec.rng(STAGE_FILL)
+    # Uneven density (issue 35) and dead-end streets make the maps of an open boundary; a ring
+    # map is the map earlier versions made, so that suites written then rebuild unchanged.
+    weight = block_weight(skeleton) if spec.boundary == "open" else None
+    tolerance = max(1, DENSITY_TOLERANCE * target)
+    closest = None  # of the opened maps
     for _ in range(DENSITY_ROUNDS):
-        fill_to_density(G, aim, field, rng, MIN_EDGE, MIN_ANGLE, stub=stub)
+        fill_to_density(G, aim, field, rng, MIN_EDGE, MIN_ANGLE, stub=stub, weight=weight)
         prune_to_density(G, aim, stub,
                          spare=spare_when_opened(G) if spec.boundary == "open" else None)
         # The fill keeps the graph planar, but the clean-up before it may not have: merging
@@ -58,15 +66,23 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
             G = _renode(G, [])
         clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN,
               min_block_area=MIN_BLOCK_AREA)
-        final = G
-        if spec.boundary == "open":
-            final = _opened_to_density(G, target, stub)
+        if spec.boundary == "ring":
+            if abs(road_node_count(G) - target) <= tolerance:
+                break
+            continue
+        # What opening takes varies: aim by the error left, keep the closest opened map and
+        # stop early only on a hit (one node is 5 % of a small map's target).
+        final = _opened_to_density(G, target, stub)
         kept = road_node_count(final)
-        if abs(kept - target) <= max(1, DENSITY_TOLERANCE * target):
+        if closest is None or abs(kept - target) < abs(road_node_count(closest) - target):
+            closest = final
+        if abs(kept - target) <= DENSITY_TOLERANCE * target:
             break
-        if spec.boundary == "open":  # what opening takes varies: aim by the error left
-            aim += target - kept
-    G = final
+        aim += target - kept
+    if spec.boundary == "open":
+        G = closest
+    if spec.boundary == "open":
+        add_dead_ends(G, rng, BORDER_MARGIN, MIN_ANGLE)
     cut_sharp_bends(G)
     _check_density(spec, road_node_count(G))
     return _relabel(G)

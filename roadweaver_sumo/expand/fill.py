@@ -51,12 +51,15 @@ def fill_to_density(
     min_edge: float,
     min_angle: float,
     stub: float = 0.0,
+    weight: Callable[[Polygon], float] | None = None,
 ) -> None:
     """Split blocks, largest first (and the blocks their splits make), until
     ``road_node_count(G) >= target`` or no block can be split, counting the road nodes as the
     clean-up will leave them (``stub``: see :func:`counted_change`)."""
     need = target - road_node_count(G)
-    heap = [(-f.area, k, f) for k, f in enumerate(sorted(faces(G), key=lambda f: f.bounds))]
+    weight = weight or (lambda face: 1.0)
+    heap = [(-f.area * weight(f), k, f)
+            for k, f in enumerate(sorted(faces(G), key=lambda f: f.bounds))]
     heapq.heapify(heap)
     counter = len(heap)
     index = EdgeIndex(G)
@@ -83,7 +86,7 @@ def fill_to_density(
         # reaches it) have degree 2: not counted.
         count += sum(counted_change(G, n, stub) for n in ends)
         for part in split_face(face, chord, ends, index):
-            heapq.heappush(heap, (-part.area, counter, part))
+            heapq.heappush(heap, (-part.area * weight(part), counter, part))
             counter += 1
 
 

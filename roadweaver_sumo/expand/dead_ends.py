@@ -1,0 +1,76 @@
+"""Dead-end streets (issue 35): real towns have them, the expansion made almost none.
+
+Away from the border about 10-15 % of a real 2 km tile's road nodes are dead ends: cul-de-sacs,
+streets that stop at a park, a rail line or a river. The A* reconnection joins the skeleton's
+dead ends (paper §III-C) and the density fill (:mod:`.fill`) makes only roads across a block,
+so our maps had about 1 %. :func:`add_dead_ends` cuts local roads short that the map does not
+need for its connections: the road keeps the part from one junction and stops inside the
+block. The junction it left was a T, which becomes a bend, so the map trades a T-junction for
+a dead end and its road-node count (its density) stays as it was.
+"""
+
+from __future__ import annotations
+
+import networkx as nx
+import numpy as np
+import shapely
+
+from ..metrics import road_node_count
+from ..roadgraph import add_road, edge_coords, edge_length
+from .bends import smooth_bends
+from .chords import substring_coords
+from .cleanup import dissolve_degree_two
+from .fill import on_cycle
+
+#: the share of road nodes away from the border that are dead ends, drawn per map: real 2 km
+#: tiles 0.05-0.33 (p10-p90, median 0.15); the expansion alone leaves about 0.12 at density 60
+DEAD_END_SHARES = (0.05, 0.30)
+KEPT_SHARE = 0.6  # of the road's length, from the junction it keeps
+MIN_KEPT = 40.0  # metres: a shorter dead end is a stub the clean-up removes
+
+
+def add_dead_ends(G: nx.Graph, rng: np.random.Generator, margin: float,
+                  min_angle: float) -> int:
+    """Cut local roads short until a share of the road nodes farther than ``margin`` from the
+    map border, drawn from :data:`DEAD_END_SHARES`, are dead ends; each road is chosen at
+    random among those that are on a cycle (the map stays connected), end in a T-junction
+    (the density stays) and are long enough. Returns how many were cut."""
+    share = rng.uniform(*DEAD_END_SHARES)
+    want = round(share * road_node_count(G)) - len(_inner_dead_ends(G, margin))
+    edges = sorted((min(u, v), max(u, v)) for u, v in G.edges
+                   if G.edges[u, v]["road_class"] == "local"
+                   and KEPT_SHARE * edge_length(G, u, v) >= MIN_KEPT)
+    flips = (rng.random(len(edges)) < 0.5).tolist()  # which junction a road keeps
+    roads = [(v, u) if flip else (u, v) for (u, v), flip in zip(edges, flips, strict=True)]
+    cut = 0
+    for k in rng.permutation(len(roads)).tolist():
+        if cut >= want:
+            break
+        keep, drop = roads[k]
+        if not (G.has_edge(keep, drop) and G.degree(keep) >= 3 and G.degree(drop) == 3
+                and on_cycle(G, keep, drop)):
+            continue
+        line = shapely.LineString(edge_coords(G, keep, drop))
+        part = substring_coords(line, 0.0, KEPT_SHARE * line.length)
+        if _near_border(G, part[-1], margin):
+            continue
+        end = max(G) + 1
+        G.add_node(end, xy=(float(part[-1][0]), float(part[-1][1])))
+        road_class = G.edges[keep, drop]["road_class"]
+        G.remove_edge(keep, drop)
+        add_road(G, keep, end, part, road_class)
+        cut += 1
+    if cut:
+        dissolve_degree_two(G, min_angle)
+        smooth_bends(G)
+    return cut
+
+
+def _inner_dead_ends(G: nx.Graph, margin: float) -> list:
+    return [n for n, degree in G.degree()
+            if degree == 1 and not _near_border(G, G.nodes[n]["xy"], margin)]
+
+
+def _near_border(G: nx.Graph, xy, margin: float) -> bool:
+    x, y = xy
+    return min(x, y, G.graph["width"] - x, G.graph["height"] - y) < margin
