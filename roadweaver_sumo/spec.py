@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import re
@@ -18,6 +19,7 @@ STYLES = ("grid", "radial", "organic", "mixed")
 #: just inside the border closes the map (``expand.boundary``).
 BOUNDARIES = ("open", "ring")
 LEGACY_BOUNDARY = "ring"  # of a spec or suite written before there was a choice
+TOWN_MARGIN = 150.0  # metres of the town an open map is cut out of, beyond each side
 SKELETONS = ("learned", "procedural")
 MAX_SIDE_M = 50_000.0
 MIN_SIDE_M = 200.0
@@ -89,6 +91,17 @@ class ScenarioSpec:
                 f"holds only {nodes:.1f} road nodes; ask for at least {MIN_ROAD_NODES} "
                 "(a larger --size or a higher --density)"
             )
+
+    def town(self) -> ScenarioSpec:
+        """The spec of the larger town an open map is cut out of (``expand.boundary``):
+        :data:`TOWN_MARGIN` more on every side; a ring map is its own town. Not checked again:
+        the town of a map of the largest size is larger than a user may ask for."""
+        if self.boundary == "ring":
+            return self
+        town = copy.copy(self)
+        object.__setattr__(town, "width", self.width + 2 * TOWN_MARGIN)
+        object.__setattr__(town, "height", self.height + 2 * TOWN_MARGIN)
+        return town
 
     @property
     def area_km2(self) -> float:

@@ -11,7 +11,7 @@ from ..metrics import road_node_count
 from ..roadgraph import add_road, edge_coords, edge_length, edge_list, sorted_edge_list
 from ..skeleton import Skeleton
 from ..skeleton.procedural import block_size
-from ..spec import STAGE_FILL, STAGE_GROWTH, ScenarioSpec
+from ..spec import STAGE_FILL, STAGE_GROWTH, TOWN_MARGIN, ScenarioSpec
 from .bends import cut_sharp_bends, smooth_bends
 from .boundary import on_map_edge, opened, spare_when_opened
 from .cleanup import MIN_BLOCK_AREA, clean, dissolve_degree_two
@@ -32,14 +32,16 @@ DENSITY_LIMIT = 0.10  # beyond this the request counts as impossible (issue 2: w
 
 def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     """Growth -> A* reconnection (dead ends, then whole components) -> the ring's component ->
-    fill/prune to the target density -> the ring opened (``spec.boundary`` "open"; the fill
-    then follows the road field, :mod:`.local_density`) -> dead-end streets (open only)."""
+    fill/prune to the target density -> for an open map (``spec.boundary``), built as a larger
+    town with a fill that follows the road field (:mod:`.local_density`), the map cut out of
+    the town and dead-end streets."""
+    town = spec.town()  # an open map is cut out of it at the end
     field = skeleton_tensor_field(skeleton)
-    collectors = grow_collectors(spec, skeleton, field, spec.rng(STAGE_GROWTH))
+    collectors = grow_collectors(town, skeleton, field, spec.rng(STAGE_GROWTH))
     roads = list(zip(skeleton.polylines, skeleton.road_classes()))
     roads += [(c, "collector") for c in collectors]
     roads.append((skeleton.frame, "collector"))
-    G = build_planar_graph(roads, spec.width, spec.height)
+    G = build_planar_graph(roads, town.width, town.height)
     stub = 0.5 * block_size(spec.density)
     clean(G, MIN_EDGE, MIN_ANGLE, stub=MIN_EDGE, margin=BORDER_MARGIN, keep_largest=False)
     cost = skeleton.cost_map()
@@ -48,11 +50,15 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     if links:
         G = _renode(G, [(c, "collector") for c in links])
     clean(G, MIN_EDGE, MIN_ANGLE, stub=stub, margin=BORDER_MARGIN)
-    target = aim = spec.target_road_nodes
+    target = spec.target_road_nodes
+    aim = round(target * town.area_km2 / spec.area_km2)
     rng = spec.rng(STAGE_FILL)
     # Uneven density (issue 35) and dead-end streets make the maps of an open boundary; a ring
     # map is the map earlier versions made, so that suites written then rebuild unchanged.
-    weight = block_weight(skeleton) if spec.boundary == "open" else None
+    weight = None
+    if spec.boundary == "open":
+        weight = block_weight(skeleton, (TOWN_MARGIN, TOWN_MARGIN, TOWN_MARGIN + spec.width,
+                                         TOWN_MARGIN + spec.height))
     tolerance = max(1, DENSITY_TOLERANCE * target)
     closest = None  # of the opened maps
     for _ in range(DENSITY_ROUNDS):
@@ -70,15 +76,17 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
             if abs(road_node_count(G) - target) <= tolerance:
                 break
             continue
-        # What opening takes varies: aim by the error left, keep the closest opened map and
-        # stop early only on a hit (one node is 5 % of a small map's target).
+        # What cutting the map out takes varies: aim by the error left (twice a shortfall:
+        # part of what the fill adds lands outside the map, and a cut map above the target
+        # is pruned to it), keep the closest cut map and stop early only on a hit (one node
+        # is 5 % of a small map's target).
         final = _opened_to_density(G, target, stub)
         kept = road_node_count(final)
         if closest is None or abs(kept - target) < abs(road_node_count(closest) - target):
             closest = final
         if abs(kept - target) <= DENSITY_TOLERANCE * target:
             break
-        aim += target - kept
+        aim += 2 * (target - kept) if kept < target else target - kept
     if spec.boundary == "open":
         G = closest
     if spec.boundary == "open":

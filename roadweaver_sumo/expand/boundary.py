@@ -1,17 +1,16 @@
-"""The map's boundary (issue 35): open by default, as a map cut out of a town, or a ring road.
+"""The map's boundary (issue 35): open by default, a map cut out of a larger town, or a ring road.
 
 The expansion builds every map inside a perimeter ring road (``skeleton.model.perimeter``):
 every block the density fill splits closes against it. No real map has one. A map cut out of a
-larger network has roads that run off its edge, and a frame road makes 11-21 % of the road
-length run along the border, where real tiles have about 2 % (issue 35, measured by
-``bench/realism.py``). :func:`open_boundary` cuts the finished map out of the ring as a real map
-is cut out of a town: everything within :data:`BAND` of the ring goes (the ring, its junctions,
-roads that ran along it), every road that crossed into that band runs on to the map edge and
-ends there as a fringe road, and pieces that only the ring held to the map (a road cutting a
-corner, a small tree off the ring) are left outside. The density fill aims at the road nodes
-that remain (the road nodes of :func:`opened`); pruning spares what holds the opened map
-together (:func:`spare_when_opened`), and an opened map with too many road nodes is pruned
-itself.
+larger network has roads that run off its edge at whatever angle they had, and a frame road
+makes 11-21 % of the road length run along the border, where real tiles have about 2 %
+(issue 35, measured by ``bench/realism.py``). So an open map is generated as a larger town,
+:data:`TOWN_MARGIN` more on every side (``ScenarioSpec.town``), and :func:`open_boundary` cuts
+the map out of it as a real map is cut out of a town: roads that cross the map edge end there
+as fringe roads, everything outside goes (the ring with it), and pieces that only roads
+outside held to the map are left out. The density fill aims at the road nodes that remain
+(the road nodes of :func:`opened`); pruning spares what holds the cut map together
+(:func:`spare_when_opened`), and a cut map with too many road nodes is pruned itself.
 """
 
 from __future__ import annotations
@@ -25,45 +24,42 @@ import numpy as np
 import shapely
 
 from ..roadgraph import add_road, edge_coords, edge_list
-from ..skeleton.model import perimeter
-from .bends import round_corners
+from ..spec import TOWN_MARGIN
 from .clearance import clearance
 from .fill import on_cycle
 from .perimeter import components_main_first
 from .planar import CLASS_RANK, road_lines
 
-#: metres either side of the ring's centre line that go with it: more than a rounded corner
-#: of the ring strays from it, less than a clearance (no other road runs that close to it).
-BAND = 6.0
+#: metres of road a fringe road keeps at least: a junction just inside the map edge keeps no
+#: stub of a road the edge cuts (a stub of a few metres lies inside the junction's own area)
+MIN_FRINGE = 20.0
 
 
 def open_boundary(G: nx.Graph) -> None:
-    """Cut ``G`` out of its perimeter ring (module docstring): edges through the band are cut at
-    its inner side and taken square on to the nearest map edge, a cut end closer than a
-    clearance to another one goes back to its road's junction, nodes in the band and every
-    piece but the main one go."""
-    inside, band = _band(G)
+    """Cut the map out of the town ``G`` (module docstring): roads are cut at the map edge,
+    a cut end closer than a clearance to another one goes back to its road's junction, nodes
+    outside and every piece but the main one go, and the map's corner becomes the origin."""
+    inside, outside = _map_and_outside(G)
     new_ids = itertools.count(max(G, default=-1) + 1)
     cut_ends = []
     for u, v, data in edge_list(G):
         line = shapely.LineString(data["coords"])
-        if not line.intersects(band):
+        if not line.intersects(outside):
             continue
         G.remove_edge(u, v)
-        for part in shapely.get_parts(line.difference(band)):
-            if not part.is_empty:
+        for part in shapely.get_parts(shapely.clip_by_rect(line, *inside.bounds)):
+            if not part.is_empty and part.length > 0.0:
                 cut_ends += _reattach(G, u, v, np.asarray(part.coords), data["road_class"],
                                       new_ids)
     _drop_crowded_ends(G, cut_ends)
     nodes = list(G)
-    outside = ~shapely.covers(inside, shapely.points([G.nodes[n]["xy"] for n in nodes]))
+    out = ~shapely.covers(inside, shapely.points([G.nodes[n]["xy"] for n in nodes]))
     ends = set(cut_ends)
-    G.remove_nodes_from([n for n, out in zip(nodes, outside.tolist(), strict=True)
-                         if out and n not in ends])
+    G.remove_nodes_from([n for n, o in zip(nodes, out.tolist(), strict=True)
+                         if o and n not in ends])
     for comp in components_main_first(G)[1:]:
         G.remove_nodes_from(comp)
-    for n in sorted(n for n in cut_ends if n in G):
-        _to_edge(G, next(iter(G.neighbors(n))), n)
+    _move_to_map_frame(G)
 
 
 def opened(G: nx.Graph) -> nx.Graph:
@@ -75,41 +71,59 @@ def opened(G: nx.Graph) -> nx.Graph:
 
 def spare_when_opened(G: nx.Graph) -> Callable[[int, int], bool]:
     """Whether the opened map holds together without road u-v (for ``prune_to_density``): a
-    road into the ring's band always does (it becomes a fringe road, which holds nothing
-    together), any other road if its ends stay connected by roads clear of the band. Without
-    this, pruning in the ring's presence leaves parts that only the ring holds to the map, and
-    opening drops them (sparse learned maps lost up to half their road nodes at once). Roads
+    road that leaves the map always does (it becomes a fringe road, which holds nothing
+    together), any other road if its ends stay connected by roads inside the map. Without
+    this, pruning in the town leaves parts that only roads outside hold to the map, and
+    cutting drops them (sparse learned maps lost up to half their road nodes at once). Roads
     are only removed from ``G`` while the answer is in use."""
     edges = edge_list(G)
-    _, band = _band(G)
-    hits = shapely.intersects(road_lines(edges), band).tolist() if edges else []
-    into_band = {frozenset((u, v)) for (u, v, _), hit in zip(edges, hits, strict=True) if hit}
-    clear = nx.subgraph_view(G, filter_edge=lambda u, v: frozenset((u, v)) not in into_band)
-    return lambda u, v: frozenset((u, v)) in into_band or on_cycle(clear, u, v)
+    _, outside = _map_and_outside(G)
+    hits = shapely.intersects(road_lines(edges), outside).tolist() if edges else []
+    leaving = {frozenset((u, v)) for (u, v, _), hit in zip(edges, hits, strict=True) if hit}
+    clear = nx.subgraph_view(G, filter_edge=lambda u, v: frozenset((u, v)) not in leaving)
+    return lambda u, v: frozenset((u, v)) in leaving or on_cycle(clear, u, v)
 
 
 def on_map_edge(G: nx.Graph, n) -> bool:
-    """Whether node ``n`` lies on the map's edge (a fringe road's end: :func:`_to_edge`)."""
+    """Whether node ``n`` of a cut map lies on its edge (a fringe road's end)."""
     x, y = G.nodes[n]["xy"]
     return min(x, y, G.graph["width"] - x, G.graph["height"] - y) < 1e-6
 
 
-def _band(G: nx.Graph) -> tuple[shapely.Polygon, shapely.Polygon]:
-    """The map inside the ring's band, and the band: :data:`BAND` either side of the ring."""
-    ring = shapely.Polygon(perimeter(G.graph["width"], G.graph["height"]))
-    inside = ring.buffer(-BAND)
-    return inside, ring.buffer(BAND).difference(inside)
+def _map_and_outside(G: nx.Graph) -> tuple[shapely.Polygon, shapely.Polygon]:
+    """The map inside the town ``G`` (:data:`TOWN_MARGIN` in from each side) and the rest."""
+    width, height = G.graph["width"], G.graph["height"]
+    inside = shapely.box(TOWN_MARGIN, TOWN_MARGIN, width - TOWN_MARGIN, height - TOWN_MARGIN)
+    return inside, shapely.box(-1.0, -1.0, width + 1.0, height + 1.0).difference(inside)
+
+
+def _move_to_map_frame(G: nx.Graph) -> None:
+    """Shift the cut map so that its corner is the origin; its size is the map's. Cut ends lie
+    on the edge to floating-point precision: they are put exactly on it."""
+    width, height = G.graph["width"] - 2 * TOWN_MARGIN, G.graph["height"] - 2 * TOWN_MARGIN
+    G.graph.update(width=width, height=height)
+    for n in G:
+        xy = np.asarray(G.nodes[n]["xy"]) - TOWN_MARGIN
+        for axis, side in ((0, width), (1, height)):
+            for edge in (0.0, side):
+                if abs(xy[axis] - edge) < 1e-6:
+                    xy[axis] = edge
+        G.nodes[n]["xy"] = (float(xy[0]), float(xy[1]))
+    for u, v, data in edge_list(G):
+        add_road(G, u, v, edge_coords(G, u, v) - TOWN_MARGIN, data["road_class"])
 
 
 def _reattach(G: nx.Graph, u, v, coords: np.ndarray, road_class: str, new_ids) -> list:
-    """Add the part ``coords`` of road u-v left outside the band: an end at u or v stays on
-    that node, an end on the band becomes a new node (ids from ``new_ids``). Returns the new
-    nodes."""
+    """Add the part ``coords`` of road u-v inside the map: an end at u or v stays on that
+    node, an end on the map edge becomes a new node (ids from ``new_ids``); a part cut at the
+    edge shorter than :data:`MIN_FRINGE` is left out. Returns the new nodes."""
     new = []
     ends = []
-    for point in (coords[0], coords[-1]):
-        node = next((n for n in (u, v) if np.allclose(G.nodes[n]["xy"], point, atol=1e-3)),
-                    None)
+    at_node = [next((n for n in (u, v) if np.allclose(G.nodes[n]["xy"], point, atol=1e-3)),
+                    None) for point in (coords[0], coords[-1])]
+    if None in at_node and shapely.length(shapely.LineString(coords)) < MIN_FRINGE:
+        return []
+    for point, node in zip((coords[0], coords[-1]), at_node, strict=True):
         if node is None:
             node = next(new_ids)
             G.add_node(node, xy=(float(point[0]), float(point[1])))
@@ -121,7 +135,7 @@ def _reattach(G: nx.Graph, u, v, coords: np.ndarray, road_class: str, new_ids) -
 
 
 def _drop_crowded_ends(G: nx.Graph, cut_ends: list) -> None:
-    """Of two cut ends closer than their roads' clearance (two roads that met at one ring
+    """Of two cut ends closer than their roads' clearance (two roads that met at one
     junction), the road of the lower class (else the later one) goes back to its junction."""
     G.remove_nodes_from([n for n in cut_ends if G.degree(n) != 1])  # a part too short to be a road
     classes = {n: _road_class(G, n) for n in cut_ends if n in G}
@@ -138,16 +152,3 @@ def _drop_crowded_ends(G: nx.Graph, cut_ends: list) -> None:
 def _road_class(G: nx.Graph, n) -> str:
     """The class of the one road of cut end ``n``."""
     return G.edges[n, next(iter(G.neighbors(n)))]["road_class"]
-
-
-def _to_edge(G: nx.Graph, other, n) -> None:
-    """Take dead-end node ``n`` (its road from ``other``) square out to the nearest map edge,
-    the corner rounded."""
-    x, y = G.nodes[n]["xy"]
-    width, height = G.graph["width"], G.graph["height"]
-    side = int(np.argmin([x, width - x, y, height - y]))
-    G.nodes[n]["xy"] = ((0.0, width, x, x)[side], (y, y, 0.0, height)[side])
-    coords = np.vstack([edge_coords(G, other, n), [G.nodes[n]["xy"]]])
-    road_class = G.edges[other, n]["road_class"]
-    G.remove_edge(other, n)
-    add_road(G, other, n, round_corners(coords, 30.0, 20.0), road_class)

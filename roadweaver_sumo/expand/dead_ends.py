@@ -11,22 +11,29 @@ a dead end and its road-node count (its density) stays as it was.
 
 from __future__ import annotations
 
+import math
+
 import networkx as nx
 import numpy as np
 import shapely
 
 from ..metrics import road_node_count
 from ..roadgraph import add_road, edge_coords, edge_length
-from .bends import smooth_bends
+from .bends import smooth_bends, turn_angles
 from .chords import substring_coords
 from .cleanup import dissolve_degree_two
 from .fill import on_cycle
+from .junction_angles import meeting_angle
 
 #: the share of road nodes away from the border that are dead ends, drawn per map: real 2 km
 #: tiles 0.05-0.33 (p10-p90, median 0.15); the expansion alone leaves about 0.12 at density 60
 DEAD_END_SHARES = (0.05, 0.30)
 KEPT_SHARE = 0.6  # of the road's length, from the junction it keeps
 MIN_KEPT = 40.0  # metres: a shorter dead end is a stub the clean-up removes
+#: degrees the T's two other roads may turn where they become one road: they join at the
+#: T's node, and a bend sharper than a road's may not be roundable there
+MAX_JOIN_TURN = 30.0
+END_STRAIGHT, END_TURN = 20.0, math.radians(5.0)  # a dead end's last metres turn less
 
 
 def add_dead_ends(G: nx.Graph, rng: np.random.Generator, margin: float,
@@ -34,7 +41,8 @@ def add_dead_ends(G: nx.Graph, rng: np.random.Generator, margin: float,
     """Cut local roads short until a share of the road nodes farther than ``margin`` from the
     map border, drawn from :data:`DEAD_END_SHARES`, are dead ends; each road is chosen at
     random among those that are on a cycle (the map stays connected), end in a T-junction
-    (the density stays) and are long enough. Returns how many were cut."""
+    whose other two roads run on nearly straight (the density stays, and the road they become
+    has no sharp bend) and are long enough. Returns how many were cut."""
     share = rng.uniform(*DEAD_END_SHARES)
     want = round(share * road_node_count(G)) - len(_inner_dead_ends(G, margin))
     edges = sorted((min(u, v), max(u, v)) for u, v in G.edges
@@ -51,13 +59,20 @@ def add_dead_ends(G: nx.Graph, rng: np.random.Generator, margin: float,
                 and on_cycle(G, keep, drop)):
             continue
         line = shapely.LineString(edge_coords(G, keep, drop))
-        part = substring_coords(line, 0.0, KEPT_SHARE * line.length)
+        kept = KEPT_SHARE * line.length
+        part = substring_coords(line, 0.0, kept)
+        if turn_angles(substring_coords(line, kept - END_STRAIGHT, kept)).sum() > END_TURN:
+            continue  # a dead end in a bend: its corner could not be rounded any more
         if _near_border(G, part[-1], margin):
+            continue
+        road = edge_coords(G, keep, drop)
+        road_class = G.edges[keep, drop]["road_class"]
+        G.remove_edge(keep, drop)
+        if meeting_angle(G, drop) < math.pi - math.radians(MAX_JOIN_TURN):
+            add_road(G, keep, drop, road, road_class)  # the T's other roads would not join
             continue
         end = max(G) + 1
         G.add_node(end, xy=(float(part[-1][0]), float(part[-1][1])))
-        road_class = G.edges[keep, drop]["road_class"]
-        G.remove_edge(keep, drop)
         add_road(G, keep, end, part, road_class)
         cut += 1
     if cut:

@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+import shapely
 from scipy.ndimage import gaussian_filter
 from shapely.geometry import Polygon
 
@@ -26,20 +27,28 @@ CONTRAST = 2.0  # the weight's power: 2 matched the real variation of road lengt
 FLOOR = 0.05  # the least relative weight: an empty stretch of field still gets roads at last
 
 
-def block_weight(skeleton: Skeleton) -> Callable[[Polygon], float]:
+def block_weight(skeleton: Skeleton, cut: tuple[float, float, float, float]
+                 ) -> Callable[[Polygon], float]:
     """The fill's weight of a block: the neighbourhood's road field at a point inside it
-    (module docstring)."""
-    field = gaussian_filter(skeleton.road_prob.astype(float), NEIGHBOURHOOD / skeleton.res)
-    mean = float(field.mean())
+    (module docstring), times the share of the block inside ``cut``, the map's box in the
+    town it is cut out of. Roads outside the map are cut away, so the field counts only
+    inside it: the town's ring road, part of the procedural road field, drew the fill to the
+    town's corners."""
+    rows, cols = skeleton.road_prob.shape
+    y, x = (np.arange(rows) + 0.5) * skeleton.res, (np.arange(cols) + 0.5) * skeleton.res
+    inside = ((cut[1] <= y) & (y <= cut[3]))[:, None] & ((cut[0] <= x) & (x <= cut[2]))[None, :]
+    field = gaussian_filter(np.where(inside, skeleton.road_prob, 0.0),
+                            NEIGHBOURHOOD / skeleton.res)
+    mean = float(field[inside].mean()) if inside.any() else 0.0
     if mean <= 0.0:
-        return lambda block: 1.0
+        field = np.ones_like(field)
+        mean = 1.0
     weight = np.maximum(field / mean, FLOOR) ** CONTRAST
-    rows, cols = weight.shape
 
     def of_block(block: Polygon) -> float:
         point = block.representative_point()
         i = min(max(int(point.y / skeleton.res), 0), rows - 1)
         j = min(max(int(point.x / skeleton.res), 0), cols - 1)
-        return float(weight[i, j])
+        return float(weight[i, j]) * shapely.clip_by_rect(block, *cut).area / block.area
 
     return of_block

@@ -7,6 +7,8 @@ from .procedural import procedural_skeleton
 
 
 def make_skeleton(spec: ScenarioSpec) -> Skeleton:
+    """The skeleton of the town the map is cut out of (``ScenarioSpec.town``)."""
+    spec = spec.town()
     if spec.skeleton == "learned":
         from .learned import learned_skeleton
 
