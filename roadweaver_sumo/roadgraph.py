@@ -73,11 +73,6 @@ def edge_length(G: nx.Graph, u, v) -> float:
     return float(np.hypot(step[:, 0], step[:, 1]).sum())
 
 
-def road_nodes(G: nx.Graph) -> list:
-    """Nodes whose degree is not 2: intersections and dead ends (the density definition)."""
-    return [n for n, d in G.degree() if d != 2]
-
-
 def total_length(G: nx.Graph) -> float:
     """Sum of the centreline lengths of all roads, metres."""
     return sum(edge_length(G, u, v) for u, v in G.edges)
