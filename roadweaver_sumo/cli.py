@@ -276,9 +276,8 @@ def _check_train_paths(args) -> None:
         raise RoadweaverError(f"--out {out} is a folder; name the checkpoint file to write")
     if out.exists() and not args.force:
         raise RoadweaverError(f"{out} exists; pass --force to replace it")
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():
-        raise RoadweaverError(f"--out {out}: folder {parent} does not exist")
+    if not out.parent.is_dir():
+        raise RoadweaverError(f"--out {out}: folder {out.parent} does not exist")
     manifest = args.data / "manifest.json"
     if not manifest.is_file():
         raise RoadweaverError(f"{args.data} is not a prepared dataset (no manifest.json)")

@@ -14,7 +14,13 @@ import numpy as np
 import shapely
 from shapely.strtree import STRtree
 
+from .roadgraph import resample_roads
+
 BEARING_BINS = 36
+#: A road's direction at a junction is taken to the point this far along it (metres).
+JUNCTION_REACH_M = 20.0
+#: Step (m) at which roads are resampled for their curvature: it hides digitising jitter.
+CURVATURE_STEP_M = 20.0
 
 
 def road_node_count(G: nx.Graph) -> int:
@@ -124,6 +130,20 @@ def orientation_order(G: nx.Graph, bins: int = BEARING_BINS) -> float:
 #: A road that turns by more than SHARP_BEND_DEG within SHARP_BEND_REACH_M metres of its length
 #: doubles back: lanes offset from it fold over each other, and near a junction SUMO's internal
 #: lanes there crossed (the collisions of a 20 km map were all at such hooks).
+def mean_curvature(G: nx.Graph, step: float = CURVATURE_STEP_M) -> float:
+    """Mean absolute curvature of the centrelines, rad/km: total heading change along every road
+    (resampled every ``step`` metres, which hides digitising jitter) per km of road."""
+    pts, owner = resample_roads(G, step)
+    if len(pts) < 2:
+        return 0.0
+    same = owner[1:] == owner[:-1]
+    d = np.diff(pts, axis=0)
+    length = float((np.hypot(*d.T) * same).sum())
+    turn = np.abs(np.mod(np.diff(np.arctan2(d[:, 1], d[:, 0])) + math.pi, 2 * math.pi) - math.pi)
+    total = float(turn[same[1:] & same[:-1]].sum())
+    return 1000.0 * total / length if length > 0 else 0.0
+
+
 SHARP_BEND_DEG = 120.0
 SHARP_BEND_REACH_M = 12.0
 

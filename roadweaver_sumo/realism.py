@@ -24,10 +24,8 @@ import numpy as np
 import shapely
 
 from . import metrics
-from .data.build import merge_degree2
-from .data.condition import JUNCTION_REACH_M, mean_curvature
-from .data.sampling import end_directions, resample_roads
-from .roadgraph import edge_length
+from .metrics import JUNCTION_REACH_M, mean_curvature
+from .roadgraph import edge_length, end_directions, merge_degree2, resample_roads
 
 #: Road nodes this close to the border, and blocks coming this close, are left out of the
 #: ``_inner`` figures; road length this close to it and parallel to it counts as frame road.

@@ -31,7 +31,7 @@ def staged_folder(out_dir: Path, force: bool) -> Iterator[Path]:
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise RoadweaverError(f"output path {out_dir} exists and is not a folder")
-    parent = out_dir.parent if str(out_dir.parent) else Path(".")
+    parent = out_dir.parent
     if parent.is_dir():
         remove_stale(out_dir)
     if out_dir.exists() and not force:
@@ -63,7 +63,7 @@ def scratch_beside(folder: Path) -> Iterator[Path | None]:
     remove_stale(folder)
     try:
         tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.partial-{os.getpid()}-",
-                                    dir=folder.parent if str(folder.parent) else "."))
+                                    dir=folder.parent))
     except OSError:
         yield None
         return
@@ -118,7 +118,7 @@ def remove_stale(out_dir: Path) -> list[Path]:
     aside while the new one moved in; put back if ``out_dir`` is missing). Only where process PID is gone. Returns what was
     removed or put back."""
     out_dir = Path(out_dir)
-    parent = out_dir.parent if str(out_dir.parent) else Path(".")
+    parent = out_dir.parent
     pattern = re.compile(rf"\.{re.escape(out_dir.name)}\.(partial|old)-(\d+)(-.*)?")
     handled: list[Path] = []
     try:

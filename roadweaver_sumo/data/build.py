@@ -74,24 +74,6 @@ def add_segment(
         add_road(G, a, b, piece, road_class)
 
 
-def merge_degree2(G: nx.Graph) -> nx.Graph:
-    """Join the two roads at every degree-2 node into one (in place; returns ``G``).
-
-    Nodes are kept where joining would create a self-loop or a parallel edge, or where the two
-    roads have different classes (the class boundary is real information).
-    """
-    for n in [n for n, d in G.degree() if d == 2]:
-        if G.degree(n) != 2:
-            continue
-        a, b = list(G.neighbors(n))
-        ca, cb = G.edges[a, n]["road_class"], G.edges[n, b]["road_class"]
-        if a == b or G.has_edge(a, b) or ca != cb:
-            continue
-        coords = np.vstack([edge_coords(G, a, n), edge_coords(G, n, b)[1:]])
-        G.remove_node(n)
-        add_road(G, a, b, coords, ca)
-    return G
-
 
 def relabel_consecutive(G: nx.Graph) -> nx.Graph:
     """A copy of ``G`` with nodes 0..n-1 (in insertion order) and ``start`` attributes updated."""

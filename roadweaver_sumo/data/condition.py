@@ -16,14 +16,13 @@ from scipy.ndimage import gaussian_filter
 
 from .. import metrics
 from ..errors import RoadweaverError
-from .sampling import edge_segments, end_directions, resample_roads
+from ..roadgraph import end_directions
+from .sampling import edge_segments
 from .style_code import STYLE_DIM, style_code
 
 CONDITION_NAMES = tuple(f"style{i}" for i in range(STYLE_DIM)) + (
     "density", "gridness", "radialness", "organicness", "bearing_entropy")
-JUNCTION_REACH_M = 20.0
 RIGHT_ANGLE_TOL_DEG = 20.0
-CURVATURE_STEP_M = 20.0
 CURVATURE_SCALE = 4.0  # rad/km at which organicness is 1 - 1/e
 CENTRE_SIGMA_M = 250.0
 CENTRE_EXCLUDE_M = 100.0
@@ -40,7 +39,7 @@ STYLE_PRESETS = {
 
 
 def right_angle_crossings(G: nx.Graph, tol_deg: float = RIGHT_ANGLE_TOL_DEG,
-                          reach: float = JUNCTION_REACH_M) -> float:
+                          reach: float = metrics.JUNCTION_REACH_M) -> float:
     """Share of junctions (degree >= 3) that are four-way crossings whose four angles are all
     within ``tol_deg`` of 90°: the local signature of a grid, whatever its orientation.
 
@@ -120,24 +119,11 @@ def radialness(G: nx.Graph, centre: np.ndarray | None = None,
     return float(observed - chance)
 
 
-def mean_curvature(G: nx.Graph, step: float = CURVATURE_STEP_M) -> float:
-    """Mean absolute curvature of the centrelines, rad/km: total heading change along every road
-    (resampled every ``step`` metres, which hides digitising jitter) per km of road."""
-    pts, owner = resample_roads(G, step)
-    if len(pts) < 2:
-        return 0.0
-    same = owner[1:] == owner[:-1]
-    d = np.diff(pts, axis=0)
-    length = float((np.hypot(*d.T) * same).sum())
-    turn = np.abs(np.mod(np.diff(np.arctan2(d[:, 1], d[:, 0])) + math.pi, 2 * math.pi) - math.pi)
-    total = float(turn[same[1:] & same[:-1]].sum())
-    return 1000.0 * total / length if length > 0 else 0.0
-
 
 def organicness(G: nx.Graph) -> float:
     """1 − exp(−κ / 4 rad/km), κ the mean absolute curvature: 0 for straight streets, about 0.6
     for the curving streets of organic city centres."""
-    return 1.0 - math.exp(-mean_curvature(G) / CURVATURE_SCALE)
+    return 1.0 - math.exp(-metrics.mean_curvature(G) / CURVATURE_SCALE)
 
 
 def structural_priors(G: nx.Graph, area_km2: float) -> np.ndarray:

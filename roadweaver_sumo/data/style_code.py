@@ -18,8 +18,7 @@ import networkx as nx
 import numpy as np
 
 from .. import metrics
-from ..roadgraph import edge_length
-from .build import merge_degree2
+from ..roadgraph import edge_length, merge_degree2
 from .tiles import coverage
 
 STYLE_FEATURES = (

@@ -15,8 +15,8 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 from skimage.morphology import skeletonize
 
-from ..roadgraph import add_road, edge_length, new_road_graph
-from .build import add_segment, merge_degree2, node_counter
+from ..roadgraph import add_road, edge_length, merge_degree2, new_road_graph
+from .build import add_segment, node_counter
 
 _STEPS = ((0, 1), (1, 0), (1, 1), (1, -1))
 

@@ -38,6 +38,7 @@ import numpy as np
 
 from ..hdmap.model import DIRECTIONS, HDMap, Lane, Road
 from ..hdmap.reference import Piece
+from ..projection import tmerc
 from .opendrive_geometry import DECIMALS, bezier_pieces
 
 CURVATURE_DECIMALS = 15  # an arc's end moves by length^2 / 2 times the curvature's rounding
@@ -148,9 +149,7 @@ def _header(hd: HDMap) -> list[str]:
     the local origin (chapter "Georeferencing": PROJ string)."""
     reference = []
     if hd.geo_origin is not None:
-        lat, lon = hd.geo_origin
-        proj = (f"+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +ellps=WGS84"
-                " +units=m +no_defs")
+        proj = f"{tmerc(hd.geo_origin)} +no_defs"
         reference = [f"{INDENT * 2}<geoReference><![CDATA[{proj}]]></geoReference>"]
     return _element(1, "header", {"revMajor": 1, "revMinor": 7, "name": "roadweaver-sumo",
                                   "version": "1.0", "date": DATE, "north": float(hd.height),

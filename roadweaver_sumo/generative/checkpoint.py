@@ -67,10 +67,7 @@ def load_vqvae(path: Path = SHIPPED_VQVAE):
     from .settings import VQVAEConfig
     from .vqvae import VQVAE
 
-    state, meta = read_checkpoint(path, "vqvae")
-    model = VQVAE(VQVAEConfig(**meta["config"]))
-    _load_state(model, state, path)
-    return model.eval(), meta
+    return _load_module(path, "vqvae", lambda config: VQVAE(VQVAEConfig(**config)))
 
 
 def load_maskgit(path: Path = SHIPPED_MASKGIT):
@@ -78,18 +75,19 @@ def load_maskgit(path: Path = SHIPPED_MASKGIT):
     from .maskgit import MaskGIT
     from .settings import MaskGITConfig
 
-    state, meta = read_checkpoint(path, "maskgit")
-    model = MaskGIT(MaskGITConfig(**meta["config"]))
-    _load_state(model, state, path)
-    return model.eval(), meta
+    return _load_module(path, "maskgit", lambda config: MaskGIT(MaskGITConfig(**config)))
 
 
-def _load_state(model, state: dict[str, np.ndarray], path: Path) -> None:
-    """Weights into the module; a checkpoint of another architecture is a one-line error."""
+def _load_module(path: Path, kind: str, build):
+    """The module ``build(config)`` in eval mode with the checkpoint's weights, and its record;
+    a checkpoint of another architecture is a one-line error."""
     import torch
 
+    state, meta = read_checkpoint(path, kind)
+    model = build(meta["config"])
     try:
         model.load_state_dict({k: torch.from_numpy(v) for k, v in state.items()})
     except RuntimeError:
         raise RoadweaverError(f"{path} does not fit this version's {type(model).__name__} "
                               "(trained by another version?): train it again") from None
+    return model.eval(), meta

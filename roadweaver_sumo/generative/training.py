@@ -36,7 +36,11 @@ WARM_START_SHARE = 0.3
 THRESHOLD_CANDIDATES = (0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.55, 0.6, 0.65, 0.7, 0.75)
 
 
-def _dataset_split(data_dir: Path, holdout: tuple[str, ...]):
+def _start(data_dir: Path, holdout: tuple[str, ...], settings: TrainSettings):
+    """Seed torch and set its threads; return the batch generator, the dataset, which of its
+    crops are held out, and its manifest."""
+    torch.manual_seed(settings.seed)
+    torch.set_num_threads(settings.threads)
     data = load_dataset(data_dir)
     manifest = json.loads((Path(data_dir) / "manifest.json").read_text())
     names = [s["file"] for s in manifest["sources"]]
@@ -46,7 +50,7 @@ def _dataset_split(data_dir: Path, holdout: tuple[str, ...]):
         held = crop_id % 10 == 9
     if (~held).sum() < 1:
         raise RoadweaverError(f"{data_dir}: no tiles to train on")
-    return data, held, manifest
+    return torch.Generator().manual_seed(settings.seed), data, held, manifest
 
 
 def _fields(Fq: np.ndarray) -> torch.Tensor:
@@ -149,10 +153,7 @@ def train_vqvae(data_dir: Path, out_path: Path, settings: TrainSettings,
                 cfg: VQVAEConfig = VQVAE_CONFIG, *, holdout=DEFAULT_HOLDOUT,
                 log: Callable[[str], None] = print) -> dict:
     """Train the VQ-VAE; write the checkpoint; return the training record (losses, IoU)."""
-    torch.manual_seed(settings.seed)
-    torch.set_num_threads(settings.threads)
-    g = torch.Generator().manual_seed(settings.seed)
-    data, held, manifest = _dataset_split(data_dir, holdout)
+    g, data, held, manifest = _start(data_dir, holdout, settings)
     train_idx = np.flatnonzero(~held)
     eval_fields = _fields(data["F"][held][:: max(1, held.sum() // 128)])
     model = VQVAE(cfg)
@@ -269,10 +270,7 @@ def train_maskgit(data_dir: Path, vqvae_path: Path, out_path: Path, settings: Tr
     """Train the masked transformer on the token grids of a trained VQ-VAE."""
     from .checkpoint import load_vqvae
 
-    torch.manual_seed(settings.seed)
-    torch.set_num_threads(settings.threads)
-    g = torch.Generator().manual_seed(settings.seed)
-    data, held, manifest = _dataset_split(data_dir, holdout)
+    g, data, held, manifest = _start(data_dir, holdout, settings)
     vqvae, vq_meta = load_vqvae(vqvae_path)
     start = time.perf_counter()
     tokens = encode_dataset(vqvae, data["F"])
@@ -347,10 +345,7 @@ def distil_guidance(data_dir: Path, vqvae_path: Path, teacher_path: Path, out_pa
     teacher was trained on, which encodes the tiles."""
     from .checkpoint import load_maskgit, load_vqvae
 
-    torch.manual_seed(settings.seed)
-    torch.set_num_threads(settings.threads)
-    g = torch.Generator().manual_seed(settings.seed)
-    data, held, _ = _dataset_split(data_dir, holdout)
+    g, data, held, _ = _start(data_dir, holdout, settings)
     teacher, meta = load_maskgit(teacher_path)
     if meta.get("guidance_distilled"):
         raise RoadweaverError(f"{teacher_path} is already distilled; distil its teacher")

@@ -52,10 +52,10 @@ def condition_for(spec: ScenarioSpec) -> tuple[np.ndarray, float]:
     return style_preset(spec.style, density=model_density), scale
 
 
-def learned_skeleton(spec: ScenarioSpec, generator=None) -> Skeleton:
+def learned_skeleton(spec: ScenarioSpec) -> Skeleton:
     from ..generative.sampling import sample_field
 
-    gen = generator or shipped_generator()
+    gen = shipped_generator()
     c, scale = condition_for(spec)
     seed = int(spec.rng(STAGE_SKELETON).integers(2**31))
     F, res = sample_field(gen, c, spec.width, spec.height, seed, scale=scale)
