@@ -59,8 +59,9 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     target = spec.target_road_nodes
     aim = round(target * town.area_km2 / spec.area_km2)
     rng = spec.rng(STAGE_FILL)
-    # Uneven density (issue 35) and dead-end streets make the maps of an open boundary; a ring
-    # map is the map earlier versions made, so that suites written then rebuild unchanged.
+    # The town, the fill that follows the road field and dead-end streets (issue 35) make the
+    # maps of an open boundary; a ring map is the map earlier versions made, so that suites
+    # written then rebuild unchanged.
     weight = None
     if spec.boundary == "open":
         weight = block_weight(skeleton, (TOWN_MARGIN, TOWN_MARGIN, TOWN_MARGIN + spec.width,
@@ -95,7 +96,6 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
         aim += 2 * (target - kept) if kept < target else target - kept
     if spec.boundary == "open":
         G = closest
-    if spec.boundary == "open":
         add_dead_ends(G, rng, BORDER_MARGIN, MIN_ANGLE)
         _keep_roads_clear(G)
     cut_sharp_bends(G)
