@@ -8,6 +8,7 @@ package stays cheap)::
     files = rw.write_map(hd, "out/map")    # plain XML, map.xodr, lanelet2_map.osm, map.net.xml
     scenario = rw.make_scenario(spec, "out/scenario")   # the folder make-scenario writes
     figures = rw.evaluate(scenario.net)    # our metrics of any SUMO net
+    city = rw.measure_city("my-town.osm.pbf")  # then ScenarioSpec(..., like=city): a map like it
 """
 
 from __future__ import annotations
@@ -72,7 +73,7 @@ def generate_map(spec: ScenarioSpec) -> HDMap:
     ----------
     spec : ScenarioSpec
         What to generate; only the map fields (size, density, style, skeleton, seed, geo
-        origin) matter here.
+        origin, priors, ``like``: :func:`measure_city`) matter here.
 
     Returns
     -------
@@ -84,7 +85,12 @@ def generate_map(spec: ScenarioSpec) -> HDMap:
     from .hdmap import build_hdmap
     from .skeleton import make_skeleton
 
-    graph = expand_skeleton(spec, make_skeleton(spec))
+    if spec.like:
+        from .like import closest_map
+
+        graph = closest_map(spec)[1]
+    else:
+        graph = expand_skeleton(spec, make_skeleton(spec))
     return build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights)
 
 

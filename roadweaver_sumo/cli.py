@@ -27,7 +27,7 @@ from pathlib import Path
 from . import __version__, children
 from .cli_parser import PROG, build_parser
 from .errors import RoadweaverError
-from .spec import ScenarioSpec, parse_size
+from .spec import PRIOR_RANGES, ScenarioSpec, parse_size
 from .staging import remove_staged
 
 EXIT_FAILED_CHECKS = 1
@@ -93,8 +93,19 @@ def _crash_log(argv: list[str] | None) -> Path:
 
 def _make_scenario(args) -> int:
     width, height = parse_size(args.size)
+    if args.density is None and args.like is None:
+        raise RoadweaverError("make-scenario needs --density (road nodes per km²), or --like "
+                              "FILE to take that network's")
+    log = (lambda msg: None) if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
+    like = None
+    if args.like is not None:
+        from .like import measure_city
+
+        like = measure_city(args.like)
+        where = f"median of {like['tiles']} 2 km tiles" if like["tiles"] else "measured whole"
+        log(f"like {args.like}: {like['density']:g} road nodes/km² ({where})")
     spec = ScenarioSpec(
-        density=args.density,
+        density=args.density if args.density is not None else like["density"],
         vehicles=args.vehicles,
         width=width,
         height=height,
@@ -103,11 +114,12 @@ def _make_scenario(args) -> int:
         skeleton=args.skeleton,
         boundary=args.boundary,
         duration=args.duration,
+        like=like,
+        **{name: getattr(args, name) for name in PRIOR_RANGES},
     )
     out = args.out if args.out is not None else Path("scenarios") / spec.name
     from .pipeline import make_scenario
 
-    log = (lambda msg: None) if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
     result = make_scenario(spec, out, force=args.force, validate=not args.no_validate, log=log)
     return _finish(result.out_dir, result.report, args.json, "wrote")
 

@@ -24,6 +24,7 @@ from .spec import (
     MIN_DURATION_S,
     MIN_ROAD_NODES,
     MIN_SIDE_M,
+    PRIOR_RANGES,
     SKELETONS,
     STYLES,
 )
@@ -31,6 +32,16 @@ from .spec import (
 PROG = "roadweaver-sumo"
 BOUNDARY_HELP = ("open: roads run off the map edge, as in a map cut out of a town; ring: a ring "
                  "road just inside the border closes the map")
+#: what each structural prior of the learned model's condition means (data/condition.py)
+PRIOR_HELP = {
+    "gridness": "how grid-like the streets are (orientation order and square crossings; "
+                "presets: grid 0.67, mixed 0.31, organic 0.07)",
+    "radialness": "how much streets run along or across the radius from the densest centre "
+                  "(radial preset 0.19, others about 0)",
+    "organicness": "how much streets curve (presets: grid 0.10, mixed 0.41, organic 0.80)",
+    "bearing_entropy": "spread of street directions in nats (presets: grid 2.06, mixed 2.98, "
+                       "organic 3.47)",
+}
 # data prepare: a tile is cut from one town, and its raster is what the models train on
 MIN_TILE_M, MAX_TILE_M = 200.0, 20_000.0
 MIN_CELLS, MAX_CELLS = 8, 512  # the VQ-VAE downsamples by 8
@@ -97,9 +108,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     make = sub.add_parser("make-scenario", help="generate a map and a validated SUMO scenario")
-    make.add_argument("--density", type=float, required=True,
+    make.add_argument("--density", type=float,
                       help=f"road nodes per km², > 0 and <= {MAX_DENSITY:g}; the map must hold "
-                           f"at least {MIN_ROAD_NODES} road nodes")
+                           f"at least {MIN_ROAD_NODES} road nodes (required unless --like gives "
+                           "the city's)")
     make.add_argument("--vehicles", type=int, required=True, help=VEHICLES_HELP)
     make.add_argument("--size", default="2000", help=SIZE_HELP)
     make.add_argument("--seed", type=int, default=0,
@@ -110,6 +122,17 @@ def build_parser() -> argparse.ArgumentParser:
     make.add_argument("--boundary", default="open", metavar=_choices(BOUNDARIES),
                       help=BOUNDARY_HELP)
     make.add_argument("--duration", type=float, default=3600.0, help=DURATION_HELP)
+    make.add_argument("--like", type=Path, metavar="FILE",
+                      help="a map like this road network: an OpenStreetMap extract (.osm, "
+                           ".osm.gz, .osm.bz2, .osm.pbf), a SUMO .net.xml or an osmnx .graphml; "
+                           "its priors condition the learned skeleton, its density is used "
+                           "unless --density is given, and the report says how close the map "
+                           "came")
+    for name, what in PRIOR_HELP.items():
+        low, high = PRIOR_RANGES[name]
+        make.add_argument(f"--{name.replace('_', '-')}", type=_number(float, low, high),
+                          help=f"{low:g}..{high:g}: {what} (default: the style's or the "
+                               "--like city's; learned skeleton only)")
     make.add_argument("--out", type=Path, help="output folder (default ./scenarios/<name>)")
     make.add_argument("--force", action="store_true", help="replace an existing output folder")
     make.add_argument("--no-validate", action="store_true", help="skip the libsumo validation")

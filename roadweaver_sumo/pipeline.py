@@ -99,14 +99,23 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
     metrics for the report."""
     stage = partial(_timed, stages, log)
     with cyclic_gc_paused():
-        with stage("skeleton ...", "skeleton"):
-            from .skeleton import make_skeleton
+        like = None
+        if spec.like:
+            with stage(f"map like {spec.like['name']}: the closest of a few ...", "like"):
+                from .like import closest_map
 
-            skeleton = make_skeleton(spec)
-        with stage("expansion ...", "expansion"):
-            from .expand import expand_skeleton
+                provenance, graph, like = closest_map(spec, log)
+        else:
+            with stage("skeleton ...", "skeleton"):
+                from .skeleton import make_skeleton
 
-            graph = expand_skeleton(spec, skeleton)
+                skeleton = make_skeleton(spec)
+            with stage("expansion ...", "expansion"):
+                from .expand import expand_skeleton
+
+                graph = expand_skeleton(spec, skeleton)
+            provenance = skeleton.provenance
+            del skeleton
         with stage("hdmap ...", "hdmap"):
             from .hdmap import build_hdmap, hdmap_metrics
 
@@ -121,11 +130,13 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
 
     generation = {
         "target_density": spec.density,
-        "skeleton": skeleton.provenance,
+        "skeleton": provenance,
         "road_graph": graph_metrics(graph, spec.area_km2),
         "hdmap": hdmap_metrics(hdmap) | {"lane_overlaps": len(hdmap_overlaps(hdmap))},
     }
-    del skeleton, graph, hdmap  # their memory is free for netconvert and the simulation
+    if like:
+        generation["like"] = like
+    del graph, hdmap  # their memory is free for netconvert and the simulation
     with stage("netconvert ...", "netconvert"):
         from .export.netconvert import run_netconvert
 

@@ -32,6 +32,10 @@ MIN_DURATION_S, MAX_DURATION_S = 1.0, 604_800.0  # a week of demand
 MAX_SEED = 2**31 - 1
 MAX_WORKERS = 256  # parallel scenarios of a suite
 DEFAULT_GEO_ORIGIN = (48.137, 11.575)  # lat, lon: only a label for the local metric frame
+#: The structural priors a user may set (``--gridness`` ...), with their ranges as
+#: ``data.condition`` measures them; bearing entropy in nats, at most ln 36 (36 bins).
+PRIOR_RANGES = {"gridness": (0.0, 1.0), "radialness": (-1.0, 1.0),
+                "organicness": (0.0, 1.0), "bearing_entropy": (0.0, round(math.log(36), 3))}
 
 # Stage ids for np.random.default_rng([seed, STAGE]): each stage draws from its own stream, so
 # changing one stage never shifts the random numbers of another.
@@ -53,6 +57,14 @@ class ScenarioSpec:
     duration: float = 3600.0
     geo_origin: tuple[float, float] = DEFAULT_GEO_ORIGIN
     version: str = field(default=__version__)
+    #: structural priors of the learned model's condition, None: the style's (or the city's)
+    gridness: float | None = None
+    radialness: float | None = None
+    organicness: float | None = None
+    bearing_entropy: float | None = None
+    #: "a map like this city" (``like.measure_city``): its name, density, structural priors and
+    #: statistics, kept here so that the spec regenerates the map without the city's file
+    like: dict | None = None
 
     def __post_init__(self) -> None:
         _check_positive_number("density", self.density)
@@ -80,6 +92,19 @@ class ScenarioSpec:
             raise RoadweaverError(
                 f"unknown boundary {self.boundary!r}; choose one of {', '.join(BOUNDARIES)}")
         _check_seed("--seed", self.seed)
+        for name, (low, high) in PRIOR_RANGES.items():
+            value = getattr(self, name)
+            if value is not None:
+                _check_number(f"--{name.replace('_', '-')}", value)
+                if not low <= value <= high:
+                    raise RoadweaverError(f"--{name.replace('_', '-')} must be {low:g}..{high:g}, "
+                                          f"got {value:g}")
+        if self.priors and self.skeleton != "learned":
+            raise RoadweaverError("--gridness, --radialness, --organicness and --bearing-entropy "
+                                  "condition the learned skeleton; drop them or use "
+                                  "--skeleton learned")
+        if self.like is not None:
+            _check_like(self.like)
         _check_positive_number("--duration", self.duration)
         if not MIN_DURATION_S <= self.duration <= MAX_DURATION_S:
             raise RoadweaverError(f"--duration must be {MIN_DURATION_S:g}..{MAX_DURATION_S:g} s "
@@ -104,6 +129,11 @@ class ScenarioSpec:
         return town
 
     @property
+    def priors(self) -> dict[str, float]:
+        """The structural priors the user set, by name."""
+        return {k: getattr(self, k) for k in PRIOR_RANGES if getattr(self, k) is not None}
+
+    @property
     def area_km2(self) -> float:
         return self.width * self.height / 1e6
 
@@ -114,10 +144,9 @@ class ScenarioSpec:
     @property
     def name(self) -> str:
         """Folder name that tells the scenarios of a suite apart at a glance."""
-        return (
-            f"{self.style}-d{self.density:g}-{self.width:g}x{self.height:g}-s{self.seed}"
-            f"-v{self.vehicles}"
-        )
+        look = f"like-{self.like['name']}" if self.like else self.style
+        return (f"{look}-d{self.density:g}-{self.width:g}x{self.height:g}-s{self.seed}"
+                f"-v{self.vehicles}")
 
     @property
     def netconvert_template(self) -> str:
@@ -140,6 +169,9 @@ class ScenarioSpec:
         data["geo_origin"] = list(self.geo_origin)
         if data["boundary"] == LEGACY_BOUNDARY:
             del data["boundary"]
+        for name in (*PRIOR_RANGES, "like"):  # unset: left out, as in specs written before
+            if data[name] is None:
+                del data[name]
         return json.dumps(data, indent=2, sort_keys=True) + "\n"
 
     @classmethod
@@ -178,6 +210,25 @@ def _check_seed(name: str, seed) -> int:
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
         raise RoadweaverError(f"{name} must be a whole number 0..{MAX_SEED}, got {seed!r}")
     return seed
+
+
+def _check_like(like) -> None:
+    """A ``like`` entry of a spec (``like.measure_city``), which a hand-edited spec.json may
+    have broken: a one-line error naming what is wrong."""
+    if not isinstance(like, dict) or not {"name", "density", "priors", "statistics"} <= set(like):
+        raise RoadweaverError("spec field 'like' must hold name, density, priors and statistics")
+    if not set(like["priors"]) <= set(PRIOR_RANGES):
+        raise RoadweaverError(f"spec field 'like' names priors other than {', '.join(PRIOR_RANGES)}")
+    values = [like["density"], *like["priors"].values(), *like["statistics"].values()]
+    if not isinstance(like["name"], str) or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            for v in values):
+        raise RoadweaverError("spec field 'like' holds a value that is not a finite number")
+
+
+def _check_number(name: str, value) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise RoadweaverError(f"{name} must be a finite number, got {value!r}")
 
 
 def _check_positive_number(name: str, value) -> None:

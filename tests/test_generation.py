@@ -864,8 +864,8 @@ def test_a_u_of_two_corners_is_rounded_as_two_corners_not_folded_into_one():
 
 @pytest.mark.parametrize("skeleton", ["procedural", "learned"])
 def test_an_open_boundary_leaves_no_frame_and_roads_running_off_the_edge(skeleton):
-    """Cut out of its ring (issue 35), a 1.5 km map has no road along its border (real tiles:
-    about 2 % of road length; the ring: over 10 %), roads that end on the map edge, one
+    """Cut out of its ring (issue 35), a 1.5 km map has no road along its border beyond what
+    real tiles have (0.6-3.4 % of road length, p10-p90; the ring: over 10 %), roads that end on the map edge, one
     connected network and its density; the same spec with the ring keeps the frame."""
     from roadweaver_sumo.realism import realism_statistics
 
@@ -876,7 +876,7 @@ def test_an_open_boundary_leaves_no_frame_and_roads_running_off_the_edge(skeleto
         maps[boundary] = G = expand_skeleton(spec, make_skeleton(spec))
         assert abs(road_node_count(G) - spec.target_road_nodes) <= 0.05 * spec.target_road_nodes
     opened = maps["open"]
-    assert realism_statistics(opened)["frame_share"] < 0.02
+    assert realism_statistics(opened)["frame_share"] < 0.035
     assert realism_statistics(maps["ring"])["frame_share"] > 0.05
     on_edge = [n for n in opened if opened.degree(n) == 1
                and min(*opened.nodes[n]["xy"], *(1500 - np.array(opened.nodes[n]["xy"]))) < 1e-6]

@@ -47,7 +47,12 @@ def test_an_open_boundary_is_written_and_a_ring_left_unsaid(tmp_path):
          "unknown boundary 'square'"),
         (["--density", "nan", "--vehicles", "5"], "density must be > 0"),
         (["--density", "abc", "--vehicles", "5"], "invalid float value"),
-        (["--vehicles", "5"], "required: --density"),
+        (["--vehicles", "5"], "needs --density (road nodes per km²), or --like FILE"),
+        (["--vehicles", "5", "--like", "nowhere.osm.pbf"], "--like: nowhere.osm.pbf not found"),
+        (["--density", "30", "--vehicles", "5", "--gridness", "2"], "must be 0..1, got 2"),
+        (["--density", "30", "--vehicles", "5", "--bearing-entropy", "x"], "is not a number"),
+        (["--density", "30", "--vehicles", "5", "--organicness", "0.5", "--skeleton",
+          "procedural"], "condition the learned skeleton"),
         (["--density", "30", "--vehicles", "0"], "--vehicles must be 1.."),
         (["--density", "30", "--vehicles", "5", "--seed", "-1"], "--seed must be"),
         (["--density", "30", "--vehicles", "5", "--duration", "0"], "--duration must be > 0"),
@@ -65,6 +70,36 @@ def test_bad_input_gives_one_line_error(tmp_path, capsys, args, message):
     assert err.count("\n") == 1 and err.startswith("roadweaver-sumo: error:")
     assert not out.exists()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_like_a_file_that_is_no_network_is_a_one_line_error(tmp_path, capsys):
+    notes = tmp_path / "town.txt"
+    notes.write_text("not a map\n")
+    fake = tmp_path / "town.net.xml"
+    fake.write_text("<routes/>\n")
+    for path, message in ((notes, "is not a road network this reads"),
+                          (fake, "is not a SUMO network")):
+        code = main(["make-scenario", "--vehicles", "5", "--like", str(path),
+                     "--out", str(tmp_path / "out")])
+        err = capsys.readouterr().err
+        assert code == 2 and message in err and err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+
+
+def test_priors_and_a_city_are_written_only_when_set(tmp_path):
+    """A spec without priors or a city writes the bytes it wrote before they existed; one
+    with them reads back equal."""
+    plain = ScenarioSpec(density=25, vehicles=100)
+    assert not {"gridness", "like"} & set(json.loads(plain.to_json()))
+    like = {"name": "town", "tiles": 0, "density": 25.0, "priors": {"gridness": 0.5},
+            "statistics": {"dead_end_share_inner": 0.2}}
+    spec = ScenarioSpec(density=25, vehicles=100, gridness=0.8, like=like)
+    path = tmp_path / "spec.json"
+    path.write_text(spec.to_json())
+    assert ScenarioSpec.from_json_file(path) == spec
+    assert spec.name.startswith("like-town-d25")
+    with pytest.raises(RoadweaverError, match="not a finite number"):
+        ScenarioSpec(density=25, vehicles=100, like=like | {"density": float("nan")})
 
 
 def test_existing_folder_is_kept_without_force(tmp_path, capsys):

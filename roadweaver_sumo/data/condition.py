@@ -144,7 +144,12 @@ def style_preset(style: str, **priors: float) -> np.ndarray:
     name (``density=60, gridness=0.8`` ...), measured as :func:`structural_priors` measures."""
     if style not in STYLE_PRESETS:
         raise RoadweaverError(f"unknown style {style!r}; choose one of {', '.join(STYLE_PRESETS)}")
-    c = np.array(STYLE_PRESETS[style], dtype=np.float32)
+    return with_priors(STYLE_PRESETS[style], **priors)
+
+
+def with_priors(c, **priors: float) -> np.ndarray:
+    """Condition vector ``c`` with the named structural priors replaced."""
+    c = np.array(c, dtype=np.float32)
     for name, value in priors.items():
         if name not in CONDITION_NAMES[STYLE_DIM:]:
             raise RoadweaverError(f"unknown structural prior {name!r}")

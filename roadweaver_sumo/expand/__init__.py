@@ -96,7 +96,8 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
         aim += 2 * (target - kept) if kept < target else target - kept
     if spec.boundary == "open":
         G = closest
-        add_dead_ends(G, rng, BORDER_MARGIN, MIN_ANGLE)
+        city = spec.like["statistics"].get("dead_end_share_inner") if spec.like else None
+        add_dead_ends(G, rng, BORDER_MARGIN, MIN_ANGLE, share=city)
         _keep_roads_clear(G)
     cut_sharp_bends(G)
     _check_density(spec, road_node_count(G))

@@ -37,13 +37,15 @@ END_STRAIGHT, END_TURN = 20.0, math.radians(5.0)  # a dead end's last metres tur
 
 
 def add_dead_ends(G: nx.Graph, rng: np.random.Generator, margin: float,
-                  min_angle: float) -> int:
+                  min_angle: float, share: float | None = None) -> int:
     """Cut local roads short until a share of the road nodes farther than ``margin`` from the
     map border, drawn from :data:`DEAD_END_SHARES`, are dead ends; each road is chosen at
     random among those that are on a cycle (the map stays connected), end in a T-junction
     whose other two roads run on nearly straight (the density stays, and the road they become
-    has no sharp bend) and are long enough. Returns how many were cut."""
-    share = rng.uniform(*DEAD_END_SHARES)
+    has no sharp bend) and are long enough. ``share``: the share wanted instead (a city's,
+    ``like``). Returns how many were cut."""
+    drawn = rng.uniform(*DEAD_END_SHARES)  # drawn either way: the stream stays the same
+    share = drawn if share is None else share
     want = round(share * road_node_count(G)) - len(_inner_dead_ends(G, margin))
     edges = sorted((min(u, v), max(u, v)) for u, v in G.edges
                    if G.edges[u, v]["road_class"] == "local"

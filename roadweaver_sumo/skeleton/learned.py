@@ -18,7 +18,7 @@ import numpy as np
 import shapely
 from scipy.ndimage import gaussian_filter, map_coordinates
 
-from ..data.condition import style_preset
+from ..data.condition import CONDITION_NAMES, STYLE_PRESETS, with_priors
 from ..data.field import field_to_graph
 from ..portable import FLOAT32_DECIMALS, portable
 from ..roadgraph import edge_coords, edge_length
@@ -26,6 +26,7 @@ from ..spec import STAGE_SKELETON, ScenarioSpec
 from ..tensor_field import TensorField, blend, field_grid, from_cross, magnitude, to_cross
 from .model import Skeleton, perimeter
 from .procedural import FIELD_RES, basis_field
+from .square_up import square_up
 
 #: Densities (road nodes/km²) the training tiles cover well (5th..95th percentile of v1).
 MODEL_DENSITY = (35.0, 145.0)
@@ -45,11 +46,14 @@ def shipped_generator():
 
 
 def condition_for(spec: ScenarioSpec) -> tuple[np.ndarray, float]:
-    """c for the spec and the window scale that makes the model's density the requested one."""
+    """c for the spec (the style's preset with the priors of the ``--like`` city, then those
+    the user set) and the window scale that makes the model's density the requested one."""
     lo, hi = MODEL_DENSITY
     model_density = float(np.clip(spec.density, lo, hi))
     scale = math.sqrt(model_density / spec.density) if spec.density < lo else 1.0
-    return style_preset(spec.style, density=model_density), scale
+    priors = {**(spec.like["priors"] if spec.like else {}), **spec.priors,
+              "density": model_density}
+    return with_priors(STYLE_PRESETS[spec.style], **priors), scale
 
 
 def learned_skeleton(spec: ScenarioSpec) -> Skeleton:
@@ -63,6 +67,8 @@ def learned_skeleton(spec: ScenarioSpec) -> Skeleton:
 
     def centrelines() -> tuple[list, list]:
         graph = field_to_graph(F, F.shape[1] * res, threshold=gen.road_threshold)
+        if spec.boundary == "open":  # ring maps stay the maps of earlier versions
+            square_up(graph, gridness=float(c[CONDITION_NAMES.index("gridness")]))
         return _clipped_roads(graph, spec.width, spec.height)
 
     def fields() -> tuple[TensorField, np.ndarray]:

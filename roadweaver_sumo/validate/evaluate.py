@@ -30,7 +30,7 @@ def evaluate_net(net_path: Path, area_km2: float | None = None) -> dict:
         raise RoadweaverError(f"network {net_path} not found")
     if area_km2 is not None and not area_km2 > 0:
         raise RoadweaverError(f"--area-km2 must be > 0, got {area_km2:g}")
-    if not _looks_like_net(net_path):
+    if not looks_like_net(net_path):
         raise RoadweaverError(f"{net_path} is not a SUMO network (no <net> root element)")
     net = load_net(net_path)
     if not road_edges(net):
@@ -94,7 +94,7 @@ def _columns(items: list[str], per_line: int = 3) -> list[str]:
     return ["  " + ", ".join(items[i : i + per_line]) for i in range(0, len(items), per_line)]
 
 
-def _looks_like_net(path: Path) -> bool:
+def looks_like_net(path: Path) -> bool:
     """Whether the root element of the (possibly gzipped) XML file is ``<net>``: sumolib reads
     any XML without complaint and returns an empty net."""
     try:

@@ -54,7 +54,8 @@ def road_edges(net: sumolib.net.Net) -> list:
 def road_graph(net: sumolib.net.Net) -> nx.Graph:
     """Undirected road graph: a node per junction (attr ``xy``), one edge per junction pair
     joined by any normal edge. The polyline is that edge's geometry (the one with the smallest
-    id when several, e.g. both directions), with the junction positions as its ends."""
+    id when several, e.g. both directions), with the junction positions as its ends; the road
+    class that of :func:`road_class`."""
     x0, y0, x1, y1 = net.getBoundary()
     G = new_road_graph(x1 - x0, y1 - y0)
     for node in road_junctions(net):
@@ -63,8 +64,21 @@ def road_graph(net: sumolib.net.Net) -> nx.Graph:
         u, v = edge.getFromNode().getID(), edge.getToNode().getID()
         if u == v or G.has_edge(u, v):
             continue
-        G.add_edge(u, v, coords=_edge_polyline(G, edge, u, v), start=u)
+        G.add_edge(u, v, coords=_edge_polyline(G, edge, u, v), start=u,
+                   road_class=road_class(edge))
     return G
+
+
+def road_class(edge) -> str:
+    """An edge's road class: from its OSM highway type where netconvert imported one
+    (``highway.primary``), else from the edge priority our export gives each class (3
+    arterial, 2 collector: ``hdmap.lanes``); local otherwise."""
+    from ..data.osm import road_class as osm_road_class
+
+    kind = edge.getType() or ""
+    if kind.startswith("highway."):
+        return osm_road_class(kind.split(".", 1)[1]) or "local"
+    return {3: "arterial", 2: "collector"}.get(edge.getPriority(), "local")
 
 
 def _edge_polyline(G: nx.Graph, edge, u: str, v: str) -> np.ndarray:

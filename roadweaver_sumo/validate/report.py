@@ -182,6 +182,12 @@ def summary_lines(report: dict) -> list[str]:
             f" {100 * sim['routing_success_rate']:.1f} % of {sim['routing_tasks']} tasks"
         ),
     ]
+    like = report.get("generation", {}).get("like")
+    if like:
+        figures = ", ".join(f"{name.removesuffix('_inner').replace('_', ' ')} {v['map']:.3g}"
+                            f" ({v['city']:.3g})" for name, v in like["statistics"].items())
+        lines.append(f"like {like['name']} (its figures in brackets; closest of "
+                     f"{like['candidates']} maps, distance {like['distance']:.3f}): {figures}")
     return lines + [f"  failed: {f}" for f in report["failures"]]
 
 
