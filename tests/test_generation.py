@@ -933,3 +933,20 @@ def test_the_fill_follows_the_road_field_unevenly_as_real_towns_are(monkeypatch)
     monkeypatch.setattr(local_density, "CONTRAST", 0.0)
     flat = mean_cv()
     assert uneven >= 0.3 and flat <= 0.25 and uneven >= flat + 0.1, (uneven, flat)
+
+
+
+def test_a_learned_radial_map_has_spokes_and_rings():
+    """The model ignores its radialness prior; the radial style's arterials are spokes and
+    rings round a centre (issue 35: "radial should show a centre with ring and spoke roads"),
+    and a mixed map of the same seed has no such centre."""
+    from roadweaver_sumo.data.condition import main_road_radialness
+
+    found = {}
+    for style in ("radial", "mixed"):
+        spec = ScenarioSpec(density=40, vehicles=1, seed=4, style=style)
+        G = expand_skeleton(spec, make_skeleton(spec))
+        found[style] = main_road_radialness(G)
+        assert abs(road_node_count(G) - spec.target_road_nodes) <= 0.05 * spec.target_road_nodes
+    assert found["radial"] > 0.4
+    assert found["mixed"] < 0.25

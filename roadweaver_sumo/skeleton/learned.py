@@ -25,7 +25,7 @@ from ..roadgraph import edge_coords, edge_length
 from ..spec import STAGE_SKELETON, ScenarioSpec
 from ..tensor_field import TensorField, blend, field_grid, from_cross, magnitude, to_cross
 from .model import Skeleton, perimeter
-from .procedural import FIELD_RES, basis_field
+from .procedural import FIELD_RES, basis_field, trace_arterials
 from .square_up import square_up
 
 #: Densities (road nodes/km²) the training tiles cover well (5th..95th percentile of v1).
@@ -36,6 +36,7 @@ BASIS_SIGMA_M = 60.0
 ARTERIAL_SHARE, COLLECTOR_SHARE = 0.25, 0.25
 STROKE_MAX_DEFLECTION_DEG = 35.0
 STROKE_REACH_M = 40.0
+RADIAL_CLEARANCE_M = 30.0
 
 
 @lru_cache(maxsize=2)
@@ -75,6 +76,8 @@ def learned_skeleton(spec: ScenarioSpec) -> Skeleton:
         return _basis_field(F, res, spec), _resample(F[..., 0], res, spec.width, spec.height)
 
     (lines, classes), (basis, road_prob) = centrelines(), fields()
+    if spec.style == "radial" and spec.boundary == "open":
+        lines, classes, basis = _radial_frame(spec, lines, classes)
     return Skeleton(
         polylines=lines,
         frame=perimeter(spec.width, spec.height),
@@ -86,6 +89,25 @@ def learned_skeleton(spec: ScenarioSpec) -> Skeleton:
         provenance={"generator": "learned", "attribution": gen.meta.get("attribution", ""),
                     "condition": [round(float(v), 4) for v in c], "window_scale": scale},
     )
+
+
+def _radial_frame(spec: ScenarioSpec, lines: list, classes: list):
+    """The radial style's arterials, spokes and rings round a centre, traced through the
+    procedural radial field (Chen et al. 2008), over the learned roads; learned roads that
+    mostly run within :data:`RADIAL_CLEARANCE_M` of one are dropped as its duplicates. The
+    fill follows the radial field. The model itself ignores its radialness prior: learned
+    `radial` maps measured 0.00 ± 0.05 against the preset's 0.19 and showed no centre."""
+    field = basis_field(spec, spec.rng(STAGE_SKELETON))
+    arterials = trace_arterials(spec, field, perimeter(spec.width, spec.height),
+                                spec.rng(STAGE_SKELETON))
+    near = shapely.union_all([shapely.LineString(a).buffer(RADIAL_CLEARANCE_M)
+                              for a in arterials])
+    kept = [(line, "local" if cls == "arterial" else cls)
+            for line, cls in zip(lines, classes, strict=True)
+            if shapely.intersection(shapely.LineString(line), near).length
+            <= 0.5 * shapely.LineString(line).length]
+    return (list(arterials) + [line for line, _ in kept],
+            ["arterial"] * len(arterials) + [cls for _, cls in kept], field)
 
 
 def _resample(channel: np.ndarray, res: float, width: float, height: float) -> np.ndarray:
