@@ -69,7 +69,7 @@ def _stopped(signum: int) -> None:
 def _run(args) -> int:
     commands = {"make-scenario": _make_scenario, "evaluate": _evaluate, "train": _train,
                 "data": _data_prepare, "make-suite": _make_suite, "check-suite": _check_suite,
-                "render": _render, "validate": _validate}  # fmt: skip
+                "render": _render, "validate": _validate, "drive": _drive}  # fmt: skip
     return commands[args.command](args)
 
 
@@ -115,6 +115,8 @@ def _make_scenario(args) -> int:
         boundary=args.boundary,
         duration=args.duration,
         like=like,
+        ego_routes=args.ego_routes,
+        ego_length=args.ego_length,
         **{name: getattr(args, name) for name in PRIOR_RANGES},
     )
     out = args.out if args.out is not None else Path("scenarios") / spec.name
@@ -148,6 +150,25 @@ def _evaluate(args) -> int:
         print(json.dumps(result, indent=2, sort_keys=True))
     else:
         print("\n".join(summary_lines(result)))
+    return 0
+
+
+def _drive(args) -> int:
+    from .closed_loop import run
+
+    if not (args.dir / "scenario.sumocfg").is_file():
+        raise RoadweaverError(f"{args.dir} is not a scenario folder (no scenario.sumocfg)")
+    report = run(args.dir, args.controller, route=args.route)
+    out = args.out or args.dir / f"drive_report_{args.route}.json"
+    out.write_text(json.dumps(report, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+    if args.json:
+        print(json.dumps(report, indent=2, sort_keys=True))
+        return 0
+    kinds = ", ".join(f"{k} x{n}" for k, n in report["infraction_counts"].items()) or "none"
+    print(f"{report['route']} ({report['route_length_m']:g} m), controller "
+          f"{report['controller']}: score {report['score']:.3f} = completion "
+          f"{report['route_completion']:.3f} x penalty {report['penalty']:.3f}; infractions: "
+          f"{kinds}; wrote {out}")
     return 0
 
 

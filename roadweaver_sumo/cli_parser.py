@@ -15,13 +15,17 @@ from . import __version__
 from .errors import RoadweaverError
 from .spec import (
     BOUNDARIES,
+    DEFAULT_EGO_LENGTH_M,
     MAX_DENSITY,
     MAX_DURATION_S,
+    MAX_EGO_LENGTH_M,
+    MAX_EGO_ROUTES,
     MAX_SEED,
     MAX_SIDE_M,
     MAX_VEHICLES,
     MAX_WORKERS,
     MIN_DURATION_S,
+    MIN_EGO_LENGTH_M,
     MIN_ROAD_NODES,
     MIN_SIDE_M,
     PRIOR_RANGES,
@@ -133,6 +137,13 @@ def build_parser() -> argparse.ArgumentParser:
         make.add_argument(f"--{name.replace('_', '-')}", type=_number(float, low, high),
                           help=f"{low:g}..{high:g}: {what} (default: the style's or the "
                                "--like city's; learned skeleton only)")
+    make.add_argument("--ego-routes", type=_number(int, 0, MAX_EGO_ROUTES), default=0,
+                      help=f"long routes for an ego vehicle, 0..{MAX_EGO_ROUTES}, written as "
+                           "ego_routes.rou.xml and routes.json for 'drive'")
+    make.add_argument("--ego-length", type=_number(float, MIN_EGO_LENGTH_M, MAX_EGO_LENGTH_M),
+                      default=DEFAULT_EGO_LENGTH_M,
+                      help=f"length of each ego route in metres (± 10 %%), "
+                           f"{MIN_EGO_LENGTH_M:g}..{MAX_EGO_LENGTH_M:g}")
     make.add_argument("--out", type=Path, help="output folder (default ./scenarios/<name>)")
     make.add_argument("--force", action="store_true", help="replace an existing output folder")
     make.add_argument("--no-validate", action="store_true", help="skip the libsumo validation")
@@ -151,6 +162,17 @@ def build_parser() -> argparse.ArgumentParser:
                            "of 8")
     prep.add_argument("--seed", type=SEED, default=0, help=SEED_HELP)
     prep.add_argument("--force", action="store_true", help="replace an existing dataset folder")
+
+    drive = sub.add_parser("drive", help="drive a controller along an ego route and score it")
+    drive.add_argument("dir", type=Path, metavar="DIR", help="a scenario made with --ego-routes")
+    drive.add_argument("--route", type=_number(int, 0, MAX_EGO_ROUTES), default=0,
+                       help="which ego route (routes.json)")
+    drive.add_argument("--controller", default="sumo",
+                       help="sumo (SUMO's own driver), naive (ignores signals and limits) or "
+                            "module:function (your controller: observation dict -> action dict)")
+    drive.add_argument("--out", type=Path,
+                       help="drive report file (default DIR/drive_report_<route>.json)")
+    drive.add_argument("--json", action="store_true", help="print the drive report as JSON")
 
     val = sub.add_parser("validate", help="re-run the validation of a scenario folder")
     val.add_argument("dir", type=Path)

@@ -147,6 +147,13 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
 
         write_demand(folder, vehicles=spec.vehicles, duration=spec.duration, seed=spec.seed)
         write_sumocfg(folder, duration=spec.duration, seed=spec.seed)
+    if spec.ego_routes:
+        with stage(f"{spec.ego_routes} ego routes of {spec.ego_length:g} m ...", "ego_routes"):
+            from .closed_loop.routes import pick_ego_routes, write_ego_routes
+            from .scenario.sumocfg import NET_FILE
+
+            write_ego_routes(folder, pick_ego_routes(folder / NET_FILE, spec.ego_routes,
+                                                     spec.ego_length, spec.seed))
     return generation
 
 

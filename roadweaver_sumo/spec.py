@@ -31,6 +31,8 @@ MIN_DURATION_S, MAX_DURATION_S = 1.0, 604_800.0  # a week of demand
 #: seed goes to randomTrips, duarouter and the sumocfg unchanged.
 MAX_SEED = 2**31 - 1
 MAX_WORKERS = 256  # parallel scenarios of a suite
+MAX_EGO_ROUTES = 100
+DEFAULT_EGO_LENGTH_M, MIN_EGO_LENGTH_M, MAX_EGO_LENGTH_M = 5000.0, 200.0, 100_000.0
 DEFAULT_GEO_ORIGIN = (48.137, 11.575)  # lat, lon: only a label for the local metric frame
 #: The structural priors a user may set (``--gridness`` ...), with their ranges as
 #: ``data.condition`` measures them; bearing entropy in nats, at most ln 36 (36 bins).
@@ -65,6 +67,9 @@ class ScenarioSpec:
     #: "a map like this city" (``like.measure_city``): its name, density, structural priors and
     #: statistics, kept here so that the spec regenerates the map without the city's file
     like: dict | None = None
+    #: long routes for an ego vehicle (``closed_loop.routes``), 0: none
+    ego_routes: int = 0
+    ego_length: float = DEFAULT_EGO_LENGTH_M
 
     def __post_init__(self) -> None:
         _check_positive_number("density", self.density)
@@ -105,6 +110,14 @@ class ScenarioSpec:
                                   "--skeleton learned")
         if self.like is not None:
             _check_like(self.like)
+        if isinstance(self.ego_routes, bool) or not isinstance(self.ego_routes, int) or \
+                not 0 <= self.ego_routes <= MAX_EGO_ROUTES:
+            raise RoadweaverError(f"--ego-routes must be a whole number 0..{MAX_EGO_ROUTES}, "
+                                  f"got {self.ego_routes!r}")
+        _check_number("--ego-length", self.ego_length)
+        if not MIN_EGO_LENGTH_M <= self.ego_length <= MAX_EGO_LENGTH_M:
+            raise RoadweaverError(f"--ego-length must be {MIN_EGO_LENGTH_M:g}.."
+                                  f"{MAX_EGO_LENGTH_M:g} m, got {self.ego_length:g}")
         _check_positive_number("--duration", self.duration)
         if not MIN_DURATION_S <= self.duration <= MAX_DURATION_S:
             raise RoadweaverError(f"--duration must be {MIN_DURATION_S:g}..{MAX_DURATION_S:g} s "
@@ -172,6 +185,8 @@ class ScenarioSpec:
         for name in (*PRIOR_RANGES, "like"):  # unset: left out, as in specs written before
             if data[name] is None:
                 del data[name]
+        if not self.ego_routes:
+            del data["ego_routes"], data["ego_length"]
         return json.dumps(data, indent=2, sort_keys=True) + "\n"
 
     @classmethod

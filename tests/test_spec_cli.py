@@ -50,6 +50,8 @@ def test_an_open_boundary_is_written_and_a_ring_left_unsaid(tmp_path):
         (["--vehicles", "5"], "needs --density (road nodes per km²), or --like FILE"),
         (["--vehicles", "5", "--like", "nowhere.osm.pbf"], "--like: nowhere.osm.pbf not found"),
         (["--density", "30", "--vehicles", "5", "--gridness", "2"], "must be 0..1, got 2"),
+        (["--density", "30", "--vehicles", "5", "--ego-routes", "-1"], "must be 0..100"),
+        (["--density", "30", "--vehicles", "5", "--ego-length", "50"], "must be 200..100000"),
         (["--density", "30", "--vehicles", "5", "--bearing-entropy", "x"], "is not a number"),
         (["--density", "30", "--vehicles", "5", "--organicness", "0.5", "--skeleton",
           "procedural"], "condition the learned skeleton"),

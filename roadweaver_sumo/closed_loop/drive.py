@@ -1,0 +1,261 @@
+"""Drive a controller along an ego route through a scenario, over libsumo (issue 37).
+
+Each step the controller gets an observation (:func:`observe`) and returns what the ego should
+do: ``{"acceleration": a}`` or ``{"speed": v}`` (m/s², m/s), optionally with ``"lane_change":
+-1 | 0 | 1`` (right, keep, left). SUMO runs the rest: the background traffic, and the ego's
+steering along its route. An external controller drives with all of SUMO's own safety checks
+off (speed mode 0), so what it does is what is scored. ``controller=None`` lets SUMO's own
+driver drive (``--controller sumo``): the reference that must finish every route cleanly.
+
+Infractions are detected from the run itself: a red light is a signal link the ego passes
+whose state was red in the step it crossed the stop line (read from the traffic light itself
+after the step, beside what the ego saw before it); speeding is a stretch above the lane's limit (``score``);
+collisions are SUMO's, junctions included. libsumo holds one simulation per process.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from ..errors import RoadweaverError
+from ..scenario.sumocfg import SUMOCFG_FILE
+from ..sumo_tools import binary
+from .routes import EGO_DEPART_S, read_ego_routes
+from .score import SPEEDING_MIN_S, driving_score, over_limit
+
+EGO = "ego"
+RADIUS_M = 50.0  # vehicles and persons within this distance are observed
+BLOCKED_S = 180.0  # standing this long (not at a red light) ends the run as blocked
+ROUTE_AHEAD = 5  # edges of the route ahead in an observation
+MIN_SPEED_MS = 3.0  # the run's time limit assumes at least this average speed, plus BLOCKED_S
+RED = "rR"
+
+Controller = Callable[[dict], dict]
+
+
+def run(scenario_dir: Path, controller: Controller | str | None, route: int = 0) -> dict:
+    """Drive ``controller`` (a callable, ``"sumo"``, ``"naive"`` or ``"module:function"``)
+    along ego route ``route`` of the scenario; returns the drive report (score, infractions,
+    step timing)."""
+    import libsumo as traci
+
+    folder = Path(scenario_dir)
+    routes = read_ego_routes(folder)
+    if not 0 <= route < len(routes):
+        raise RoadweaverError(f"--route {route}: the scenario has routes 0..{len(routes) - 1}")
+    plan = routes[route]
+    control = resolve_controller(controller)
+    with tempfile.TemporaryDirectory(prefix="roadweaver-drive-") as tmp:
+        traci.start([binary("sumo"), "-c", str(folder / SUMOCFG_FILE), "--no-warnings", "true",
+                     "--error-log", str(Path(tmp) / "errors.log"),
+                     "--collision.action", "warn", "--collision.check-junctions", "true"])
+        try:
+            report = _drive(traci, plan, control)
+        finally:
+            traci.close()
+    return {"route": plan["id"], "route_length_m": plan["length_m"],
+            "controller": controller if isinstance(controller, str) or controller is None
+            else getattr(controller, "__name__", "callable"), **report}
+
+
+def resolve_controller(controller) -> Controller | None:
+    if controller is None or controller == "sumo":
+        return None
+    if controller == "naive":
+        return naive_controller
+    if callable(controller):
+        return controller
+    module, _, name = str(controller).partition(":")
+    try:
+        found = getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError, ValueError):
+        raise RoadweaverError(f"--controller {controller!r}: not sumo, naive or an importable "
+                              "module:function") from None
+    if not callable(found):
+        raise RoadweaverError(f"--controller {controller!r} is not a function")
+    return found
+
+
+def naive_controller(obs: dict) -> dict:
+    """Ignores signals and speed limits (drives 30 % above the limit) but keeps its distance
+    to the vehicle ahead: what the score must catch."""
+    target = 1.3 * obs["speed_limit"]
+    accel = max(-4.5, min(2.6, target - obs["speed"]))
+    leader = obs["leader"]
+    if leader is not None and leader["gap"] < 5.0 + 1.5 * obs["speed"]:
+        accel = -4.5
+    return {"acceleration": accel}
+
+
+def _drive(traci, plan: dict, control: Controller | None) -> dict:
+    traci.vehicletype.copy("DEFAULT_VEHTYPE", EGO)
+    traci.vehicletype.setSpeedFactor(EGO, 1.0)
+    traci.vehicletype.setSpeedDeviation(EGO, 0.0)
+    traci.vehicletype.setColor(EGO, (255, 0, 0, 255))
+    traci.route.add(plan["id"], plan["edges"])
+    traci.vehicle.add(EGO, plan["id"], typeID=EGO, depart=f"{EGO_DEPART_S:g}",
+                      departLane="best", departSpeed="0")
+    dt = traci.simulation.getDeltaT()
+    while EGO not in traci.vehicle.getIDList():
+        if traci.simulation.getTime() > EGO_DEPART_S + BLOCKED_S:
+            raise RoadweaverError(f"the ego could not enter {plan['edges'][0]} within "
+                                  f"{BLOCKED_S:g} s")
+        traci.simulationStep()
+    traci.vehicle.subscribeContext(EGO, traci.constants.CMD_GET_VEHICLE_VARIABLE, RADIUS_M,
+                                   [traci.constants.VAR_POSITION, traci.constants.VAR_SPEED])
+    if control is not None:
+        traci.vehicle.setSpeedMode(EGO, 0)
+    deadline = traci.simulation.getTime() + plan["length_m"] / MIN_SPEED_MS + BLOCKED_S
+    edges, infractions = set(plan["edges"]), []
+    speeding_since, standing_since, arrived = None, None, False
+    sumo_s = loop_s = 0.0
+    steps = 0
+    while True:
+        began = time.perf_counter()
+        now = traci.simulation.getTime()
+        obs = observe(traci, plan)
+        signal = obs["next_signal"]
+        if obs["edge"].startswith(":"):  # inside a junction: a curve speed, not a legal limit
+            pass
+        elif over_limit(obs["speed"], obs["speed_limit"]):
+            speeding_since = now if speeding_since is None else speeding_since
+            if now - speeding_since >= SPEEDING_MIN_S and not _open(infractions, "speeding"):
+                infractions.append({"type": "speeding", "time": speeding_since,
+                                    "edge": obs["edge"], "limit_ms": obs["speed_limit"],
+                                    "speed_ms": round(obs["speed"], 2), "open": True})
+        else:
+            speeding_since = None
+            _close(infractions, "speeding")
+        if control is not None:
+            _apply(traci, control(obs), obs["speed"], dt)
+        stepped = time.perf_counter()
+        traci.simulationStep()
+        done = time.perf_counter()
+        sumo_s += done - stepped
+        loop_s += stepped - began
+        steps += 1
+        if EGO in traci.simulation.getArrivedIDList():
+            arrived = True
+            break
+        for c in traci.simulation.getCollisions():
+            if EGO in (c.collider, c.victim):
+                other = c.victim if c.collider == EGO else c.collider
+                kind = "collision_person" if "person" in (c.colliderType, c.victimType) \
+                    else "collision"
+                infractions.append({"type": kind, "time": now + dt, "lane": c.lane,
+                                    "other": other, "ego_role": "collider"
+                                    if c.collider == EGO else "victim"})
+        if EGO in traci.simulation.getStartingTeleportIDList() or \
+                EGO not in traci.vehicle.getIDList():
+            infractions.append({"type": "teleport", "time": now + dt, "edge": obs["edge"]})
+            break
+        crossed = _crossed_red(traci, signal)
+        if crossed:
+            infractions.append({"type": "red_light", "time": now, **crossed})
+        road = traci.vehicle.getRoadID(EGO)
+        if not road.startswith(":") and road not in edges:
+            infractions.append({"type": "off_route", "time": now + dt, "edge": road})
+            break
+        standing = traci.vehicle.getSpeed(EGO) < 0.1 and not (
+            signal and signal["state"] in RED and signal["distance"] < 30.0)
+        standing_since = (standing_since or now) if standing else None
+        if standing_since is not None and now - standing_since >= BLOCKED_S:
+            infractions.append({"type": "blocked", "time": standing_since, "edge": road})
+            break
+        if now >= deadline:
+            break
+    distance = plan["length_m"] if arrived else traci.vehicle.getDistance(EGO)
+    for i in infractions:
+        i.pop("open", None)
+    completion = 1.0 if arrived else min(1.0, max(0.0, distance / plan["length_m"]))
+    return {"arrived": arrived, "end_time": traci.simulation.getTime(),
+            **driving_score(completion, infractions), "infractions": infractions,
+            "steps": steps, "sumo_step_ms": round(1e3 * sumo_s / max(steps, 1), 4),
+            "loop_overhead_ms": round(1e3 * loop_s / max(steps, 1), 4)}
+
+
+def observe(traci, plan: dict) -> dict:
+    """What a driving stack sees of the ego and around it this step."""
+    x, y = traci.vehicle.getPosition(EGO)
+    edge = traci.vehicle.getRoadID(EGO)
+    index = traci.vehicle.getRouteIndex(EGO)
+    ahead = plan["edges"][index + 1: index + 1 + ROUTE_AHEAD] if index >= 0 else []
+    upcoming = traci.vehicle.getNextTLS(EGO)
+    signal = None
+    if upcoming:
+        tls, link, distance, state = upcoming[0]
+        signal = {"id": tls, "link": link, "distance": round(distance, 3), "state": state}
+    next_limit = None
+    if ahead:
+        next_limit = {"distance": round(traci.lane.getLength(traci.vehicle.getLaneID(EGO))
+                                        - traci.vehicle.getLanePosition(EGO), 3),
+                      "limit": traci.lane.getMaxSpeed(f"{ahead[0]}_0")}
+    leader = traci.vehicle.getLeader(EGO, RADIUS_M)
+    around = traci.vehicle.getContextSubscriptionResults(EGO) or {}
+    vehicles = []
+    for vid, values in sorted(around.items()):
+        if vid == EGO:
+            continue
+        px, py = values[traci.constants.VAR_POSITION]
+        vehicles.append({"id": vid, "x": px, "y": py,
+                         "speed": values[traci.constants.VAR_SPEED],
+                         "distance": math.hypot(px - x, py - y)})
+    persons = []
+    for pid in traci.person.getIDList():
+        px, py = traci.person.getPosition(pid)
+        if math.hypot(px - x, py - y) <= RADIUS_M:
+            persons.append({"id": pid, "x": px, "y": py, "distance": math.hypot(px - x, py - y)})
+    return {"time": traci.simulation.getTime(), "x": x, "y": y,
+            "angle": traci.vehicle.getAngle(EGO), "speed": traci.vehicle.getSpeed(EGO),
+            "acceleration": traci.vehicle.getAcceleration(EGO), "edge": edge,
+            "lane": traci.vehicle.getLaneID(EGO), "lane_index": traci.vehicle.getLaneIndex(EGO),
+            "lane_position": traci.vehicle.getLanePosition(EGO),
+            "speed_limit": traci.vehicle.getAllowedSpeed(EGO), "next_speed_limit": next_limit,
+            "route_ahead": ahead, "route_driven_m": traci.vehicle.getDistance(EGO),
+            "route_length_m": plan["length_m"], "next_signal": signal,
+            "leader": None if not leader or not leader[0] else
+            {"id": leader[0], "gap": leader[1]}, "vehicles": vehicles, "persons": persons}
+
+
+def _apply(traci, action: dict, speed: float, dt: float) -> None:
+    if "speed" in action:
+        target = float(action["speed"])
+    else:
+        target = speed + float(action.get("acceleration", 0.0)) * dt
+    traci.vehicle.setSpeed(EGO, max(0.0, target))
+    change = int(action.get("lane_change", 0))
+    if change:
+        traci.vehicle.changeLaneRelative(EGO, change, dt)
+
+
+def _crossed_red(traci, before: dict | None) -> dict | None:
+    """The signal link the ego was heading for before this step, if it has now passed its
+    stop line and the light showed red for the link in this step. SUMO switches its lights at
+    the start of a step, before vehicles move, so the state read after the step is the one
+    the ego crossed under."""
+    if before is None:
+        return None
+    upcoming = traci.vehicle.getNextTLS(EGO)
+    if any(tls == before["id"] and distance <= before["distance"] + 0.01
+           for tls, _, distance, _ in upcoming):
+        return None
+    state = traci.trafficlight.getRedYellowGreenState(before["id"])[before["link"]]
+    if state not in RED:
+        return None
+    return {"signal": before["id"], "link": before["link"], "state": state,
+            "ego_saw": before["state"], "distance_before_m": before["distance"]}
+
+
+def _open(infractions: list, kind: str) -> bool:
+    return any(i["type"] == kind and i.get("open") for i in infractions)
+
+
+def _close(infractions: list, kind: str) -> None:
+    for i in infractions:
+        if i["type"] == kind:
+            i.pop("open", None)

@@ -1,0 +1,139 @@
+"""Ego routes for closed-loop evaluation (issue 37): long routes through the map's situations.
+
+A driving stack is judged along long routes, where its planning failures accumulate (CARLA
+Leaderboard, Bench2Drive; paper §I). A route here chains shortest paths through random inner
+waypoints until it reaches the asked length (± :data:`LENGTH_TOLERANCE`), starting and ending
+on edges away from the map's fringe. Of :data:`CANDIDATES_PER_ROUTE` candidates per route
+asked for, the routes are picked greedily by the situations they add: each turn is named by
+its direction and the control of the junction it is made at (``left@traffic_light``,
+``straight@priority`` ...), with turns that need a lane change first (not every lane of the
+approach leads there) counted as ``lane_change_for_turn``.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from itertools import pairwise
+from pathlib import Path
+
+import numpy as np
+import sumolib
+from lxml import etree
+
+from ..errors import RoadweaverError
+from ..scenario.xmlfile import write_xml
+
+ROUTES_FILE = "ego_routes.rou.xml"
+LIST_FILE = "routes.json"
+EGO_TYPE = "ego"
+EGO_DEPART_S = 120.0  # background traffic has filled the map by then
+LENGTH_TOLERANCE = 0.10
+FRINGE_M = 100.0  # a route starts and ends at least this far from the map border
+CANDIDATES_PER_ROUTE = 12
+MAX_LEGS = 40
+DIRECTION = {"s": "straight", "l": "left", "r": "right", "t": "u_turn", "L": "left",
+             "R": "right"}
+
+
+def pick_ego_routes(net_path: Path, count: int, length: float, seed: int) -> list[dict]:
+    """``count`` routes of about ``length`` metres on the SUMO net at ``net_path``, each a dict
+    with ``id``, ``edges``, ``length_m`` and ``situations`` (kind -> count)."""
+    net = sumolib.net.readNet(str(net_path))
+    inner = _inner_edges(net)
+    if len(inner) < 2:
+        raise RoadweaverError("ego routes: the map has no two roads away from its fringe")
+    rng = np.random.default_rng([seed, 37])
+    candidates = []
+    for _ in range(count * CANDIDATES_PER_ROUTE):
+        edges = _chained_route(net, inner, length, rng)
+        if edges is not None and "u_turn" not in "".join(situations(edges)):
+            candidates.append({"edges": [e.getID() for e in edges],
+                               "length_m": round(sum(e.getLength() for e in edges), 1),
+                               "situations": situations(edges)})
+    if len(candidates) < count:
+        raise RoadweaverError(f"ego routes: found {len(candidates)} routes of {length:g} m "
+                              f"± {100 * LENGTH_TOLERANCE:g} %, asked for {count}; ask for "
+                              "shorter routes (--ego-length) or a larger map")
+    chosen, seen = [], Counter()
+    for k in range(count):
+        best = max(candidates, key=lambda c: (len(set(c["situations"]) - set(seen)),
+                                              sum(c["situations"].values())))
+        candidates.remove(best)
+        seen.update(best["situations"])
+        chosen.append({"id": f"ego_route_{k}", "vehicle": f"ego_{k}", **best})
+    return chosen
+
+
+def situations(edges: list) -> dict[str, int]:
+    """The turns of a route (edge sequence) by direction and junction control, and the turns
+    that need a lane change before them."""
+    found = Counter()
+    for a, b in pairwise(edges):
+        links = a.getOutgoing().get(b, [])
+        if not links:
+            continue
+        found[f"{DIRECTION.get(links[0].getDirection(), 'other')}@{a.getToNode().getType()}"] += 1
+        if len({c.getFromLane().getIndex() for c in links}) < a.getLaneNumber():
+            found["lane_change_for_turn"] += 1
+    return dict(sorted(found.items()))
+
+
+def write_ego_routes(folder: Path, routes: list[dict]) -> None:
+    """``ego_routes.rou.xml`` (the ``ego`` type, each route and an ego vehicle on it, for
+    ``sumo -c scenario.sumocfg --route-files demand.rou.xml,ego_routes.rou.xml``) and
+    ``routes.json`` (each route's length, edges and situations)."""
+    root = etree.Element("routes")
+    etree.SubElement(root, "vType", id=EGO_TYPE, vClass="passenger", color="1,0,0",
+                     speedFactor="1", speedDev="0")
+    for route in routes:
+        etree.SubElement(root, "route", id=route["id"], edges=" ".join(route["edges"]))
+    for route in routes:
+        etree.SubElement(root, "vehicle", id=route["vehicle"], type=EGO_TYPE,
+                         route=route["id"], depart=f"{EGO_DEPART_S:g}", departLane="best")
+    write_xml(root, Path(folder) / ROUTES_FILE)
+    (Path(folder) / LIST_FILE).write_text(json.dumps(routes, indent=2) + "\n", encoding="utf-8")
+
+
+def read_ego_routes(folder: Path) -> list[dict]:
+    """The routes of ``folder/routes.json``; a one-line error if there are none."""
+    path = Path(folder) / LIST_FILE
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise RoadweaverError(f"{folder} has no ego routes ({LIST_FILE}); make the scenario "
+                              "with --ego-routes N") from None
+    except (OSError, json.JSONDecodeError) as exc:
+        raise RoadweaverError(f"cannot read {path}: {exc}") from None
+
+
+def _inner_edges(net) -> list:
+    """Roads cars may drive whose both ends lie farther than FRINGE_M from the border."""
+    x0, y0, x1, y1 = net.getBoundary()
+
+    def inside(node) -> bool:
+        x, y = node.getCoord()[:2]
+        return min(x - x0, y - y0, x1 - x, y1 - y) > FRINGE_M
+
+    return sorted((e for e in net.getEdges(withInternal=False)
+                   if e.allows("passenger") and inside(e.getFromNode())
+                   and inside(e.getToNode())), key=lambda e: e.getID())
+
+
+def _chained_route(net, inner: list, length: float, rng) -> list | None:
+    """Shortest paths from a random inner edge through random inner waypoints, cut at the
+    first inner edge where the route is long enough; None if it misses the tolerance."""
+    ends = set(inner)
+    route = [inner[rng.integers(len(inner))]]
+    total = route[0].getLength()
+    for _ in range(MAX_LEGS):
+        target = inner[rng.integers(len(inner))]
+        path, _ = net.getShortestPath(route[-1], target, vClass="passenger")
+        if not path or len(path) < 2:
+            continue
+        for edge in path[1:]:
+            route.append(edge)
+            total += edge.getLength()
+            if total >= (1 - LENGTH_TOLERANCE) * length and edge in ends:
+                return route if total <= (1 + LENGTH_TOLERANCE) * length else None
+    return None
