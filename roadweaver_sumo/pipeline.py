@@ -153,7 +153,8 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
             from .scenario.sumocfg import NET_FILE
 
             write_ego_routes(folder, pick_ego_routes(folder / NET_FILE, spec.ego_routes,
-                                                     spec.ego_length, spec.seed))
+                                                     spec.ego_length, spec.seed),
+                             folder / NET_FILE)
     return generation
 
 

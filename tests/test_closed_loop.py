@@ -93,3 +93,27 @@ def test_the_readme_example_controller_keeps_signals_and_limits(scenario):
         report = rw.closed_loop.run(scenario, module.control, route=route)
         assert report["arrived"], report
         assert not {"red_light", "speeding"} & set(report["infraction_counts"]), report
+
+
+def test_carla_route_files_lie_on_connected_lanes_of_the_xodr(scenario):
+    """Every waypoint of carla_routes.xml is on a lane of map.xodr as CARLA's map code reads it
+    (PyPI ``carla``, no server), and each next one is reachable in CARLA's topology."""
+    carla = pytest.importorskip("carla")
+    import networkx as nx
+    from lxml import etree
+    from test_carla import topology_graph
+
+    m = carla.Map("map", (scenario / "map.xodr").read_text())
+    graph = topology_graph(m)
+    routes = etree.parse(str(scenario / "carla_routes.xml")).getroot().findall("route")
+    assert len(routes) == 2
+    for route in routes:
+        keys = []
+        for p in route.iter("position"):
+            x, y = float(p.get("x")), float(p.get("y"))
+            w = m.get_waypoint(carla.Location(x, y, 0.0))
+            assert w.transform.location.distance(carla.Location(x, y, 0.0)) < 0.5 * w.lane_width
+            keys.append((w.road_id, w.section_id, w.lane_id))
+        assert len(keys) > 10
+        for a, b in zip(keys, keys[1:], strict=False):
+            assert nx.has_path(graph, a, b), (a, b)

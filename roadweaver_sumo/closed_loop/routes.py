@@ -26,6 +26,7 @@ from ..scenario.xmlfile import write_xml
 
 ROUTES_FILE = "ego_routes.rou.xml"
 LIST_FILE = "routes.json"
+CARLA_FILE = "carla_routes.xml"
 EGO_TYPE = "ego"
 EGO_DEPART_S = 120.0  # background traffic has filled the map by then
 LENGTH_TOLERANCE = 0.10
@@ -79,10 +80,10 @@ def situations(edges: list) -> dict[str, int]:
     return dict(sorted(found.items()))
 
 
-def write_ego_routes(folder: Path, routes: list[dict]) -> None:
+def write_ego_routes(folder: Path, routes: list[dict], net_path: Path) -> None:
     """``ego_routes.rou.xml`` (the ``ego`` type, each route and an ego vehicle on it, for
-    ``sumo -c scenario.sumocfg --route-files demand.rou.xml,ego_routes.rou.xml``) and
-    ``routes.json`` (each route's length, edges and situations)."""
+    ``sumo -c scenario.sumocfg --route-files demand.rou.xml,ego_routes.rou.xml``),
+    ``routes.json`` (each route's length, edges and situations) and ``carla_routes.xml``."""
     root = etree.Element("routes")
     etree.SubElement(root, "vType", id=EGO_TYPE, vClass="passenger", color="1,0,0",
                      speedFactor="1", speedDev="0")
@@ -93,6 +94,25 @@ def write_ego_routes(folder: Path, routes: list[dict]) -> None:
                          route=route["id"], depart=f"{EGO_DEPART_S:g}", departLane="best")
     write_xml(root, Path(folder) / ROUTES_FILE)
     (Path(folder) / LIST_FILE).write_text(json.dumps(routes, indent=2) + "\n", encoding="utf-8")
+    write_carla_routes(Path(folder) / CARLA_FILE, routes, sumolib.net.readNet(str(net_path)))
+
+
+def write_carla_routes(path: Path, routes: list[dict], net) -> None:
+    """The routes in CARLA Leaderboard's route format: a ``position`` in the middle of each
+    route edge's right-most lane, in CARLA's frame for ``map.xodr`` (CARLA turns OpenDRIVE's y
+    round: y = -y; our SUMO net and map.xodr share x and y). ``town`` is ``map``: load
+    ``map.xodr`` as a standalone OpenDRIVE world."""
+    from sumolib.geomhelper import positionAtShapeOffset
+
+    root = etree.Element("routes")
+    for k, route in enumerate(routes):
+        element = etree.SubElement(root, "route", id=str(k), town="map")
+        waypoints = etree.SubElement(element, "waypoints")
+        for edge in route["edges"]:
+            lane = net.getEdge(edge).getLane(0)
+            x, y = positionAtShapeOffset(lane.getShape(), lane.getLength() / 2)
+            etree.SubElement(waypoints, "position", x=f"{x:.3f}", y=f"{-y:.3f}", z="0.0")
+    write_xml(root, path)
 
 
 def read_ego_routes(folder: Path) -> list[dict]:
