@@ -149,12 +149,14 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
         write_sumocfg(folder, duration=spec.duration, seed=spec.seed)
     if spec.ego_routes:
         with stage(f"{spec.ego_routes} ego routes of {spec.ego_length:g} m ...", "ego_routes"):
+            import sumolib
+
             from .closed_loop.routes import pick_ego_routes, write_ego_routes
             from .scenario.sumocfg import NET_FILE
 
-            write_ego_routes(folder, pick_ego_routes(folder / NET_FILE, spec.ego_routes,
-                                                     spec.ego_length, spec.seed),
-                             folder / NET_FILE)
+            net = sumolib.net.readNet(str(folder / NET_FILE))
+            write_ego_routes(folder, pick_ego_routes(net, spec.ego_routes, spec.ego_length,
+                                                     spec.seed), net)
     return generation
 
 

@@ -2,6 +2,7 @@
 
 import json
 import subprocess
+from itertools import pairwise
 
 import pytest
 
@@ -115,5 +116,5 @@ def test_carla_route_files_lie_on_connected_lanes_of_the_xodr(scenario):
             assert w.transform.location.distance(carla.Location(x, y, 0.0)) < 0.5 * w.lane_width
             keys.append((w.road_id, w.section_id, w.lane_id))
         assert len(keys) > 10
-        for a, b in zip(keys, keys[1:], strict=False):
+        for a, b in pairwise(keys):
             assert nx.has_path(graph, a, b), (a, b)

@@ -9,8 +9,9 @@ driver drive (``--controller sumo``): the reference that must finish every route
 
 Infractions are detected from the run itself: a red light is a signal link the ego passes
 whose state was red in the step it crossed the stop line (read from the traffic light itself
-after the step, beside what the ego saw before it); speeding is a stretch above the lane's limit (``score``);
-collisions are SUMO's, junctions included. libsumo holds one simulation per process.
+after the step, beside what the ego saw before it); speeding is a stretch above the lane's
+limit (``score``); collisions are SUMO's, junctions included. libsumo holds one simulation per
+process.
 """
 
 from __future__ import annotations
@@ -112,7 +113,7 @@ def _drive(traci, plan: dict, control: Controller | None) -> dict:
         traci.vehicle.setSpeedMode(EGO, 0)
     deadline = traci.simulation.getTime() + plan["length_m"] / MIN_SPEED_MS + BLOCKED_S
     edges, infractions = set(plan["edges"]), []
-    speeding_since, standing_since, arrived = None, None, False
+    speeding_since, speeding_reported, standing_since, arrived = None, False, None, False
     sumo_s = loop_s = 0.0
     steps = 0
     while True:
@@ -120,17 +121,16 @@ def _drive(traci, plan: dict, control: Controller | None) -> dict:
         now = traci.simulation.getTime()
         obs = observe(traci, plan)
         signal = obs["next_signal"]
-        if obs["edge"].startswith(":"):  # inside a junction: a curve speed, not a legal limit
-            pass
-        elif over_limit(obs["speed"], obs["speed_limit"]):
+        # inside a junction the lane speed is a curve speed, not a legal limit
+        if not obs["edge"].startswith(":") and over_limit(obs["speed"], obs["speed_limit"]):
             speeding_since = now if speeding_since is None else speeding_since
-            if now - speeding_since >= SPEEDING_MIN_S and not _open(infractions, "speeding"):
+            if now - speeding_since >= SPEEDING_MIN_S and not speeding_reported:
                 infractions.append({"type": "speeding", "time": speeding_since,
                                     "edge": obs["edge"], "limit_ms": obs["speed_limit"],
-                                    "speed_ms": round(obs["speed"], 2), "open": True})
-        else:
-            speeding_since = None
-            _close(infractions, "speeding")
+                                    "speed_ms": round(obs["speed"], 2)})
+                speeding_reported = True
+        elif not obs["edge"].startswith(":"):
+            speeding_since, speeding_reported = None, False
         if control is not None:
             _apply(traci, control(obs), obs["speed"], dt)
         stepped = time.perf_counter()
@@ -170,8 +170,6 @@ def _drive(traci, plan: dict, control: Controller | None) -> dict:
         if now >= deadline:
             break
     distance = plan["length_m"] if arrived else traci.vehicle.getDistance(EGO)
-    for i in infractions:
-        i.pop("open", None)
     completion = 1.0 if arrived else min(1.0, max(0.0, distance / plan["length_m"]))
     return {"arrived": arrived, "end_time": traci.simulation.getTime(),
             **driving_score(completion, infractions), "infractions": infractions,
@@ -250,12 +248,3 @@ def _crossed_red(traci, before: dict | None) -> dict | None:
     return {"signal": before["id"], "link": before["link"], "state": state,
             "ego_saw": before["state"], "distance_before_m": before["distance"]}
 
-
-def _open(infractions: list, kind: str) -> bool:
-    return any(i["type"] == kind and i.get("open") for i in infractions)
-
-
-def _close(infractions: list, kind: str) -> None:
-    for i in infractions:
-        if i["type"] == kind:
-            i.pop("open", None)

@@ -18,7 +18,6 @@ from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
-import sumolib
 from lxml import etree
 
 from ..errors import RoadweaverError
@@ -37,10 +36,9 @@ DIRECTION = {"s": "straight", "l": "left", "r": "right", "t": "u_turn", "L": "le
              "R": "right"}
 
 
-def pick_ego_routes(net_path: Path, count: int, length: float, seed: int) -> list[dict]:
-    """``count`` routes of about ``length`` metres on the SUMO net at ``net_path``, each a dict
-    with ``id``, ``edges``, ``length_m`` and ``situations`` (kind -> count)."""
-    net = sumolib.net.readNet(str(net_path))
+def pick_ego_routes(net, count: int, length: float, seed: int) -> list[dict]:
+    """``count`` routes of about ``length`` metres on the sumolib ``net``, each a dict with
+    ``id``, ``edges``, ``length_m`` and ``situations`` (kind -> count)."""
     inner = _inner_edges(net)
     if len(inner) < 2:
         raise RoadweaverError("ego routes: the map has no two roads away from its fringe")
@@ -48,10 +46,13 @@ def pick_ego_routes(net_path: Path, count: int, length: float, seed: int) -> lis
     candidates = []
     for _ in range(count * CANDIDATES_PER_ROUTE):
         edges = _chained_route(net, inner, length, rng)
-        if edges is not None and "u_turn" not in "".join(situations(edges)):
+        if edges is None:
+            continue
+        found = situations(edges)
+        if not any(kind.startswith("u_turn@") for kind in found):
             candidates.append({"edges": [e.getID() for e in edges],
                                "length_m": round(sum(e.getLength() for e in edges), 1),
-                               "situations": situations(edges)})
+                               "situations": found})
     if len(candidates) < count:
         raise RoadweaverError(f"ego routes: found {len(candidates)} routes of {length:g} m "
                               f"± {100 * LENGTH_TOLERANCE:g} %, asked for {count}; ask for "
@@ -80,7 +81,7 @@ def situations(edges: list) -> dict[str, int]:
     return dict(sorted(found.items()))
 
 
-def write_ego_routes(folder: Path, routes: list[dict], net_path: Path) -> None:
+def write_ego_routes(folder: Path, routes: list[dict], net) -> None:
     """``ego_routes.rou.xml`` (the ``ego`` type, each route and an ego vehicle on it, for
     ``sumo -c scenario.sumocfg --route-files demand.rou.xml,ego_routes.rou.xml``),
     ``routes.json`` (each route's length, edges and situations) and ``carla_routes.xml``."""
@@ -94,7 +95,7 @@ def write_ego_routes(folder: Path, routes: list[dict], net_path: Path) -> None:
                          route=route["id"], depart=f"{EGO_DEPART_S:g}", departLane="best")
     write_xml(root, Path(folder) / ROUTES_FILE)
     (Path(folder) / LIST_FILE).write_text(json.dumps(routes, indent=2) + "\n", encoding="utf-8")
-    write_carla_routes(Path(folder) / CARLA_FILE, routes, sumolib.net.readNet(str(net_path)))
+    write_carla_routes(Path(folder) / CARLA_FILE, routes, net)
 
 
 def write_carla_routes(path: Path, routes: list[dict], net) -> None:

@@ -102,12 +102,13 @@ def _radial_frame(spec: ScenarioSpec, lines: list, classes: list):
                                 spec.rng(STAGE_SKELETON))
     near = shapely.union_all([shapely.LineString(a).buffer(RADIAL_CLEARANCE_M)
                               for a in arterials])
-    kept = [(line, "local" if cls == "arterial" else cls)
-            for line, cls in zip(lines, classes, strict=True)
-            if shapely.intersection(shapely.LineString(line), near).length
-            <= 0.5 * shapely.LineString(line).length]
-    return (list(arterials) + [line for line, _ in kept],
-            ["arterial"] * len(arterials) + [cls for _, cls in kept], field)
+    kept_lines, kept_classes = list(arterials), ["arterial"] * len(arterials)
+    for line, cls in zip(lines, classes, strict=True):
+        road = shapely.LineString(line)
+        if shapely.intersection(road, near).length <= 0.5 * road.length:
+            kept_lines.append(line)
+            kept_classes.append("local" if cls == "arterial" else cls)
+    return kept_lines, kept_classes, field
 
 
 def _resample(channel: np.ndarray, res: float, width: float, height: float) -> np.ndarray:

@@ -71,14 +71,16 @@ def road_graph(net: sumolib.net.Net) -> nx.Graph:
 
 def road_class(edge) -> str:
     """An edge's road class: from its OSM highway type where netconvert imported one
-    (``highway.primary``), else from the edge priority our export gives each class (3
-    arterial, 2 collector: ``hdmap.lanes``); local otherwise."""
+    (``highway.primary``), else from the edge priority our export gives each class
+    (``hdmap.lanes.LANE_CONFIGS``); local otherwise."""
     from ..data.osm import road_class as osm_road_class
+    from ..hdmap.lanes import LANE_CONFIGS
 
     kind = edge.getType() or ""
     if kind.startswith("highway."):
         return osm_road_class(kind.split(".", 1)[1]) or "local"
-    return {3: "arterial", 2: "collector"}.get(edge.getPriority(), "local")
+    by_priority = {config.priority: cls for cls, config in LANE_CONFIGS.items()}
+    return by_priority.get(edge.getPriority(), "local")
 
 
 def _edge_polyline(G: nx.Graph, edge, u: str, v: str) -> np.ndarray:
