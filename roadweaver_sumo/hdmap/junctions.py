@@ -31,6 +31,7 @@ NEAR_STRAIGHT = np.radians(150.0)  # neighbouring roads this far apart do not ov
 HEADING_PROBE = 5.0  # m along a road used to measure its direction at a junction
 LATERAL_ACCEL = 3.0  # m/s^2: connector speed limit sqrt(a * r_min) on tight turns
 PIVOT_GAP = 1e-6  # m: a boundary whose ends are closer starts and ends at one point
+PIVOT_CLEARANCE = 1e-7  # m: a U-turn arc's radius beyond its lane's half width (< PIVOT_GAP / 2)
 
 
 def junction_type(classes: list[str], traffic_lights: bool = True) -> str:
@@ -209,11 +210,17 @@ def _half_circle(start: np.ndarray, tangent: np.ndarray, end: np.ndarray, w0: fl
     half circle between them, exact in every file (an OpenDRIVE arc), with its centre line,
     boundaries (widths blending from ``w0`` to ``w1``) and speed limit; None where ``end`` does
     not lie to the left. Between the two lanes beside a road's centre line its inner boundary
-    is that centre line's end point (:func:`_pivoted`), as a Bezier's never quite was."""
+    is that centre line's end point (:func:`_pivoted`), as a Bezier's never quite was. There
+    the arc's radius is held :data:`PIVOT_CLEARANCE` above the lane's half width: an OpenDRIVE
+    lane whose inner border lies a rounding error beyond its arc's centre (radius below zero)
+    sends esmini's map loader into an endless loop."""
     gap = float(tangent[0] * (end[1] - start[1]) - tangent[1] * (end[0] - start[0]))
     if gap <= 0.0:
         return None
     radius = gap / 2.0
+    inner = max(w0, w1) / 2.0
+    if abs(radius - inner) < PIVOT_CLEARANCE:  # the lane's inner boundary is the arc's centre
+        radius = inner + PIVOT_CLEARANCE
     arc = Piece("arc", 0.0, float(start[0]), float(start[1]),
                 math.atan2(float(tangent[1]), float(tangent[0])), math.pi * radius,
                 curvature=1.0 / radius)
