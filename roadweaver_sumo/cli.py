@@ -69,7 +69,8 @@ def _stopped(signum: int) -> None:
 def _run(args) -> int:
     commands = {"make-scenario": _make_scenario, "evaluate": _evaluate, "train": _train,
                 "data": _data_prepare, "make-suite": _make_suite, "check-suite": _check_suite,
-                "render": _render, "validate": _validate, "drive": _drive}  # fmt: skip
+                "render": _render, "validate": _validate, "drive": _drive,
+                "drive-suite": _drive_suite}  # fmt: skip
     return commands[args.command](args)
 
 
@@ -158,7 +159,8 @@ def _drive(args) -> int:
 
     if not (args.dir / "scenario.sumocfg").is_file():
         raise RoadweaverError(f"{args.dir} is not a scenario folder (no scenario.sumocfg)")
-    report = run(args.dir, args.controller, route=args.route)
+    controller = args.controller or (None if args.remote_port else "sumo")
+    report = run(args.dir, controller, route=args.route, remote_port=args.remote_port)
     out = args.out or args.dir / f"drive_report_{args.route}.json"
     out.write_text(json.dumps(report, indent=2, sort_keys=True) + "\n", encoding="utf-8")
     if args.json:
@@ -169,6 +171,42 @@ def _drive(args) -> int:
           f"{report['controller']}: score {report['score']:.3f} = completion "
           f"{report['route_completion']:.3f} x penalty {report['penalty']:.3f}; infractions: "
           f"{kinds}; wrote {out}")
+    return 0
+
+
+def _drive_suite(args) -> int:
+    from .closed_loop.suite_drive import (
+        SCORES_FILE,
+        compare_scores,
+        drive_suite,
+        read_scores,
+        table_lines,
+    )
+    from .suite import Progress, read_manifest
+
+    suite, manifest = read_manifest(args.dir)  # a broken suite fails before any driving
+    out = args.out or args.dir / SCORES_FILE
+    if out.exists() and not args.force:
+        raise RoadweaverError(f"{out} exists; use --force to replace it, or --out")
+    baseline = read_scores(args.baseline) if args.baseline else None
+    progress = Progress(len(manifest["scenarios"]) * suite.ego_routes, enabled=not args.json)
+    table = drive_suite(args.dir, args.controller, progress=progress)
+    out.write_text(json.dumps(table, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+    changes, regressed = compare_scores(baseline, table) if baseline else ([], False)
+    if args.json:
+        print(json.dumps(table | {"changes": changes, "regressed": regressed}, indent=2,
+                         sort_keys=True))
+    else:
+        print("\n".join(table_lines(table)))
+        if baseline:
+            print(f"against {args.baseline}: {len(changes)} routes changed")
+            for line in changes:
+                print(f"  {line}")
+        print(f"wrote {out}")
+    if regressed:
+        print(f"{PROG}: error: a route scores lower or has a new infraction kind than in "
+              f"{args.baseline}", file=sys.stderr)
+        return EXIT_FAILED_CHECKS
     return 0
 
 
@@ -232,7 +270,8 @@ def _make_suite(args) -> int:
     suite = SuiteSpec(densities=parse_densities(args.densities), styles=parse_styles(args.styles),
                       seeds=parse_seeds(args.seeds), width=width, height=height,
                       vehicles=args.vehicles, duration=args.duration, skeleton=args.skeleton,
-                      boundary=args.boundary)  # fmt: skip
+                      boundary=args.boundary, ego_routes=args.ego_routes,
+                      ego_length=args.ego_length)  # fmt: skip
     total = len(suite.scenarios())
     progress = Progress(total, enabled=not (args.quiet or args.json))
     start = time.monotonic()

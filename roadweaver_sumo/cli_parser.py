@@ -167,9 +167,14 @@ def build_parser() -> argparse.ArgumentParser:
     drive.add_argument("dir", type=Path, metavar="DIR", help="a scenario made with --ego-routes")
     drive.add_argument("--route", type=_number(int, 0, MAX_EGO_ROUTES), default=0,
                        help="which ego route (routes.json)")
-    drive.add_argument("--controller", default="sumo",
-                       help="sumo (SUMO's own driver), naive (ignores signals and limits) or "
-                            "module:function (your controller: observation dict -> action dict)")
+    drive.add_argument("--controller",
+                       help="sumo (SUMO's own driver, the default), naive (ignores signals and "
+                            "limits) or module:function (your controller: observation dict -> "
+                            "action dict)")
+    drive.add_argument("--remote-port", type=_number(int, 1024, 65535),
+                       help="let a stack in another process drive the ego over TraCI: SUMO "
+                            "serves this port, the stack connects as client 2 (traci.init, "
+                            "traci.setOrder(2)) and controls vehicle 'ego'")
     drive.add_argument("--out", type=Path,
                        help="drive report file (default DIR/drive_report_<route>.json)")
     drive.add_argument("--json", action="store_true", help="print the drive report as JSON")
@@ -204,6 +209,11 @@ def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:
                        help="how the arterial roads are made")  # same default as make-scenario
     suite.add_argument("--boundary", default=make.get_default("boundary"),
                        metavar=_choices(BOUNDARIES), help=BOUNDARY_HELP)
+    suite.add_argument("--ego-routes", type=_number(int, 0, MAX_EGO_ROUTES), default=0,
+                       help="ego routes per scenario, for 'drive-suite'")
+    suite.add_argument("--ego-length", type=_number(float, MIN_EGO_LENGTH_M, MAX_EGO_LENGTH_M),
+                       default=make.get_default("ego_length"),
+                       help="length of each ego route in metres (± 10 %%)")
     suite.add_argument("--out", type=Path, required=True, help="suite folder")
     suite.add_argument("--force", action="store_true", help="replace an existing suite folder")
     suite.add_argument("--engine", default="local", metavar="{local,ray}",
@@ -222,6 +232,18 @@ def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:
                        help=f"parallel scenarios, 1..{MAX_WORKERS} (default: CPU count)")
     check.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     check.add_argument("--json", action="store_true", help="print the result as JSON")
+
+    drive = sub.add_parser("drive-suite", help="drive a controller along every ego route of "
+                           "a suite: a score table, and its changes against a baseline table")
+    drive.add_argument("dir", type=Path, metavar="SUITE", help="a suite made with --ego-routes")
+    drive.add_argument("--controller", default="sumo", help="as for 'drive'")
+    drive.add_argument("--out", type=Path,
+                       help="score table to write (default SUITE/drive_scores.json)")
+    drive.add_argument("--baseline", type=Path,
+                       help="an earlier score table: list what changed, exit 1 if a route "
+                            "scores lower or has an infraction it did not have")
+    drive.add_argument("--force", action="store_true", help="replace an existing score table")
+    drive.add_argument("--json", action="store_true", help="print the score table as JSON")
 
     render = sub.add_parser("render", help="redraw preview.png of scenario folders")
     render.add_argument("dirs", type=Path, nargs="+", metavar="DIR")

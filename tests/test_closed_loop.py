@@ -3,11 +3,13 @@
 import json
 import subprocess
 from itertools import pairwise
+from pathlib import Path
 
 import pytest
 
 import roadweaver_sumo as rw
 from roadweaver_sumo.cli import main
+from roadweaver_sumo.closed_loop.drive import SSM_THRESHOLDS
 from roadweaver_sumo.closed_loop.routes import FRINGE_M, LENGTH_TOLERANCE
 from roadweaver_sumo.sumo_tools import binary
 
@@ -36,6 +38,8 @@ def test_ego_routes_are_long_inner_and_load_in_sumo(scenario):
             x, y = net.getEdge(e).getFromNode().getCoord()[:2]
             assert min(x - x0, y - y0, x1 - x, y1 - y) > FRINGE_M
         assert sum(r["situations"].values()) > 5 and not any("u_turn" in k for k in r["situations"])
+        roads = [e.rsplit("_", 1)[0] for e in r["edges"]]
+        assert len(set(roads)) == len(roads)  # no road driven twice
     run = subprocess.run([binary("sumo"), "-c", str(scenario / "scenario.sumocfg"),
                           "--route-files", "demand.rou.xml,ego_routes.rou.xml", "--end", "1500",
                           "--no-step-log", "true", "--tripinfo-output", "trips.xml"],
@@ -82,7 +86,6 @@ def test_the_readme_example_controller_keeps_signals_and_limits(scenario):
     """The controller the README shows (docs/examples/my_stack.py, the same text) drives both
     routes to the end without running a light or speeding."""
     import importlib.util
-    from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
     source = (root / "docs" / "examples" / "my_stack.py").read_text()
@@ -118,3 +121,154 @@ def test_carla_route_files_lie_on_connected_lanes_of_the_xodr(scenario):
         assert len(keys) > 10
         for a, b in pairwise(keys):
             assert nx.has_path(graph, a, b), (a, b)
+
+
+ESMINI = Path(__file__).resolve().parents[2] / "shared" / "tools" / "esmini" / "esmini"
+
+
+def test_openscenario_routes_lie_on_the_xodr_lanes_of_their_sumo_edges(scenario):
+    """Each ego_route_K.xosc loads map.xodr and puts one waypoint on every route edge, on the
+    OpenDRIVE road and lane the edge was exported to (a lane of the edge's driving direction),
+    and one on the connecting road between each two; the ego starts on the first one; the
+    file is OpenSCENARIO 1.2."""
+    from lxml import etree
+
+    xodr = etree.parse(str(scenario / "map.xodr")).getroot()
+    lanes = {(road.get("id"), lane.get("id")) for road in xodr.iterfind("road")
+             for lane in road.iter("lane") if lane.get("type") == "driving"}
+    for k, route in enumerate(json.loads((scenario / "routes.json").read_text())):
+        root = etree.parse(str(scenario / f"ego_route_{k}.xosc")).getroot()
+        assert root.find("FileHeader").get("revMinor") == "2"
+        assert root.find("RoadNetwork/LogicFile").get("filepath") == "map.xodr"
+        points = [w.find("Position/LanePosition") for w in root.iter("Waypoint")]
+        assert len(points) == 2 * len(route["edges"]) - 1  # edges, and connecting roads between
+        for edge, point in zip(route["edges"], points[::2]):
+            road, direction = edge[1:].rsplit("_", 1)
+            assert point.get("roadId") == road and (point.get("roadId"), point.get("laneId")) in lanes
+            assert (int(point.get("laneId")) < 0) == (direction == "f")
+        for before, point, after in zip(points[::2], points[1::2], points[2::2]):
+            link = xodr.find(f"road[@id='{point.get('roadId')}']")
+            assert link.get("junction") != "-1"
+            assert [link.find(f"link/{end}").get("elementId") for end in ("predecessor",
+                    "successor")] == [before.get("roadId"), after.get("roadId")]
+        start = root.find("Storyboard/Init/Actions/Private[@entityRef='ego']").find(
+            ".//TeleportAction/Position/LanePosition")
+        assert start.attrib == points[0].attrib
+
+
+@pytest.mark.skipif(not ESMINI.exists(), reason="esmini is in ../shared/tools only")
+def test_esmini_drives_every_openscenario_route_to_its_end(scenario, tmp_path):
+    """esmini (a player we did not write) runs each file headless: the ego reaches the last
+    waypoint after driving at least 80 % of the route, before the time limit, with no error
+    in its log."""
+    import shutil
+
+    for k in range(2):
+        work = tmp_path / str(k)
+        work.mkdir()
+        for name in ("map.xodr", f"ego_route_{k}.xosc"):
+            shutil.copy(scenario / name, work / name)
+        run = subprocess.run([str(ESMINI), "--headless", "--osc", f"ego_route_{k}.xosc",
+                              "--fixed_timestep", "0.05", "--disable_stdout"], cwd=work,
+                             capture_output=True, text=True, timeout=300, check=False)
+        assert run.returncode == 0, run.stdout[-2000:]
+        log = (work / "log.txt").read_text()
+        assert "arrived: true" in log and "driven_most: true" in log, log[-2000:]
+        assert "time_limit: true" not in log
+        errors = [ln for ln in log.splitlines() if "[error]" in ln and "geo reference" not in ln]
+        assert not errors, errors[:3]
+
+
+def test_drive_suite_scores_every_route_and_names_what_a_new_controller_breaks(tmp_path, capsys):
+    """make-suite --ego-routes, then drive-suite: SUMO's driver as the baseline table, the
+    naive controller against it is a regression (exit 1) listed by scenario, route and
+    infraction; the table is not overwritten without --force."""
+    suite = tmp_path / "suite"
+    assert main(["make-suite", "--densities", "30", "--styles", "grid,organic", "--seeds", "0",
+                 "--size", "1000", "--vehicles", "100", "--duration", "900", "--ego-routes",
+                 "1", "--ego-length", "1200", "--out", str(suite), "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["drive-suite", str(suite), "--controller", "sumo"]) == 0
+    baseline = json.loads((suite / "drive_scores.json").read_text())
+    assert [(r["route"], r["score"]) for r in baseline["routes"]] == [(0, 1.0), (0, 1.0)]
+    assert "mean score 1.000 over 2 routes" in capsys.readouterr().out
+
+    assert main(["drive-suite", str(suite), "--controller", "naive"]) == 2
+    assert "drive_scores.json exists; use --force" in capsys.readouterr().err
+    out = tmp_path / "naive.json"
+    assert main(["drive-suite", str(suite), "--controller", "naive", "--out", str(out),
+                 "--baseline", str(suite / "drive_scores.json")]) == 1
+    captured = capsys.readouterr()
+    assert "2 routes changed" in captured.out and "(worse)" in captured.out
+    assert "speeding 0 -> " in captured.out
+    assert "a route scores lower or has a new infraction kind" in captured.err
+    assert json.loads(out.read_text())["mean_score"] < 0.9
+    assert main(["drive-suite", str(suite), "--controller", "sumo", "--out", str(tmp_path / "again.json"),
+                 "--baseline", str(suite / "drive_scores.json")]) == 0
+    assert "0 routes changed" in capsys.readouterr().out
+
+
+def test_drive_suite_refuses_a_suite_without_ego_routes(tmp_path, capsys):
+    suite = tmp_path / "suite"
+    assert main(["make-suite", "--densities", "30", "--styles", "grid", "--seeds", "0",
+                 "--size", "500", "--vehicles", "20", "--duration", "300", "--out", str(suite),
+                 "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["drive-suite", str(suite)]) == 2
+    err = capsys.readouterr().err
+    assert "the suite has no ego routes; make it with make-suite --ego-routes N" in err
+    assert err.count("\n") == 1
+
+
+REMOTE_STACK = """
+import sys, traci
+traci.init(int(sys.argv[1]))
+traci.setOrder(2)
+seen = False
+while traci.simulation.getMinExpectedNumber() > 0:
+    traci.simulationStep()
+    if "ego" in traci.vehicle.getIDList():
+        seen = True
+        traci.vehicle.setSpeedMode("ego", 0)
+        traci.vehicle.setSpeed("ego", 1.3 * traci.vehicle.getAllowedSpeed("ego"))
+    elif seen:
+        break
+traci.close()
+"""
+
+
+def test_a_stack_in_another_process_drives_over_traci_and_is_scored(scenario, capsys):
+    """--remote-port: a speeding stack that connects as TraCI client 2 drives the ego; the
+    drive loop scores it as it would a controller of its own."""
+    import sys
+
+    from sumolib.miscutils import getFreeSocketPort
+
+    port = getFreeSocketPort()
+    stack = subprocess.Popen([sys.executable, "-c", REMOTE_STACK, str(port)])
+    try:
+        assert main(["drive", str(scenario), "--route", "0", "--remote-port", str(port),
+                     "--json"]) == 0
+    finally:
+        stack.wait(timeout=120)
+    report = json.loads(capsys.readouterr().out)
+    assert report["controller"] == f"external (TraCI port {port})"
+    assert report["infraction_counts"].get("speeding", 0) >= 1 and report["score"] < 0.95
+    assert stack.returncode == 0
+    assert main(["drive", str(scenario), "--controller", "naive", "--remote-port",
+                 str(port)]) == 2
+    assert "give --controller or --remote-port, not both" in capsys.readouterr().err
+
+
+def test_near_misses_come_from_sumos_ssm_device(scenario):
+    """Conflicts that SUMO's SSM device logs around the ego (time to collision or
+    post-encroachment time below its thresholds) are listed with the other vehicle and time;
+    they happen in plain driving (SUMO's own driver on these routes) and are not scored."""
+    reports = [rw.closed_loop.run(scenario, "sumo", route=k) for k in (0, 1)]
+    assert all(r["score"] == 1.0 for r in reports)
+    conflicts = [c for r in reports for c in r["near_misses"]["conflicts"]]
+    assert len(conflicts) == sum(r["near_misses"]["count"] for r in reports) >= 1
+    ttc, pet = (float(v) for v in SSM_THRESHOLDS.split())
+    for c in conflicts:
+        assert c["other"] and c["time"] > 0
+        assert c.get("minTTC", ttc) < ttc or c.get("PET", pet) < pet

@@ -16,8 +16,10 @@ process.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import math
+import sys
 import tempfile
 import time
 from collections.abc import Callable
@@ -35,33 +37,54 @@ BLOCKED_S = 180.0  # standing this long (not at a red light) ends the run as blo
 ROUTE_AHEAD = 5  # edges of the route ahead in an observation
 MIN_SPEED_MS = 3.0  # the run's time limit assumes at least this average speed, plus BLOCKED_S
 RED = "rR"
+SSM_THRESHOLDS = "1.5 1.0"  # s: TTC and PET below which SUMO's SSM device logs a conflict
 
 Controller = Callable[[dict], dict]
 
 
-def run(scenario_dir: Path, controller: Controller | str | None, route: int = 0) -> dict:
+def run(scenario_dir: Path, controller: Controller | str | None, route: int = 0,
+        remote_port: int | None = None) -> dict:
     """Drive ``controller`` (a callable, ``"sumo"``, ``"naive"`` or ``"module:function"``)
     along ego route ``route`` of the scenario; returns the drive report (score, infractions,
-    step timing)."""
-    import libsumo as traci
+    step timing).
 
+    With ``remote_port`` the ego is driven by a stack in another process instead: SUMO serves
+    TraCI on that port for two clients, this loop (client order 1) adds the ego ``"ego"`` and
+    scores it, the stack connects as the second client (``traci.init(port);
+    traci.setOrder(2)``), steps along and controls the ego itself."""
     folder = Path(scenario_dir)
     routes = read_ego_routes(folder)
     if not 0 <= route < len(routes):
         raise RoadweaverError(f"--route {route}: the scenario has routes 0..{len(routes) - 1}")
     plan = routes[route]
+    if remote_port is not None and controller is not None:
+        raise RoadweaverError("give --controller or --remote-port, not both: with "
+                              "--remote-port the stack on that port drives the ego")
     control = resolve_controller(controller)
     with tempfile.TemporaryDirectory(prefix="roadweaver-drive-") as tmp:
-        traci.start([binary("sumo"), "-c", str(folder / SUMOCFG_FILE), "--no-warnings", "true",
-                     "--error-log", str(Path(tmp) / "errors.log"),
-                     "--collision.action", "warn", "--collision.check-junctions", "true"])
+        command = [binary("sumo"), "-c", str(folder / SUMOCFG_FILE), "--no-warnings", "true",
+                   "--error-log", str(Path(tmp) / "errors.log"),
+                   "--collision.action", "warn", "--collision.check-junctions", "true"]
+        if remote_port is None:
+            import libsumo as traci
+
+            traci.start(command)
+        else:
+            import traci
+
+            with contextlib.redirect_stdout(sys.stderr):  # its connection retries: not --json
+                traci.start(command + ["--num-clients", "2"], port=remote_port)
+            traci.setOrder(1)
         try:
-            report = _drive(traci, plan, control)
+            report = _drive(traci, plan, control, Path(tmp) / "ssm.xml")
         finally:
             traci.close()
-    return {"route": plan["id"], "route_length_m": plan["length_m"],
-            "controller": controller if isinstance(controller, str) or controller is None
-            else getattr(controller, "__name__", "callable"), **report}
+        report["near_misses"] = near_misses(Path(tmp) / "ssm.xml")
+    label = (f"external (TraCI port {remote_port})" if remote_port is not None else
+             controller if isinstance(controller, str) or controller is None
+             else getattr(controller, "__name__", "callable"))
+    return {"route": plan["id"], "route_length_m": plan["length_m"], "controller": label,
+            **report}
 
 
 def resolve_controller(controller) -> Controller | None:
@@ -93,11 +116,15 @@ def naive_controller(obs: dict) -> dict:
     return {"acceleration": accel}
 
 
-def _drive(traci, plan: dict, control: Controller | None) -> dict:
+def _drive(traci, plan: dict, control: Controller | None, ssm_file: Path) -> dict:
     traci.vehicletype.copy("DEFAULT_VEHTYPE", EGO)
     traci.vehicletype.setSpeedFactor(EGO, 1.0)
     traci.vehicletype.setSpeedDeviation(EGO, 0.0)
     traci.vehicletype.setColor(EGO, (255, 0, 0, 255))
+    for key, value in {"has.ssm.device": "true", "device.ssm.measures": "TTC PET",
+                       "device.ssm.thresholds": SSM_THRESHOLDS, "device.ssm.file": str(ssm_file),
+                       "device.ssm.trajectories": "false"}.items():
+        traci.vehicletype.setParameter(EGO, key, value)
     traci.route.add(plan["id"], plan["edges"])
     traci.vehicle.add(EGO, plan["id"], typeID=EGO, depart=f"{EGO_DEPART_S:g}",
                       departLane="best", departSpeed="0")
@@ -175,6 +202,26 @@ def _drive(traci, plan: dict, control: Controller | None) -> dict:
             **driving_score(completion, infractions), "infractions": infractions,
             "steps": steps, "sumo_step_ms": round(1e3 * sumo_s / max(steps, 1), 4),
             "loop_overhead_ms": round(1e3 * loop_s / max(steps, 1), 4)}
+
+
+def near_misses(ssm_file: Path) -> dict:
+    """The ego's conflicts that SUMO's SSM device logged (time to collision or post-encroachment
+    time below :data:`SSM_THRESHOLDS`): each with its time, the other vehicle and the least
+    TTC and PET, and the least of each over the run. Near misses are reported, not scored."""
+    from lxml import etree
+
+    conflicts = []
+    if ssm_file.exists():
+        for conflict in etree.parse(str(ssm_file)).getroot().iter("conflict"):
+            least = {tag: float(conflict.find(tag).get("value")) for tag in ("minTTC", "PET")
+                     if conflict.find(tag) is not None and conflict.find(tag).get("value")
+                     not in (None, "NA")}
+            if least:
+                conflicts.append({"time": float(conflict.get("begin")),
+                                  "other": conflict.get("foe"), **least})
+    return {"count": len(conflicts), "conflicts": conflicts,
+            **{f"least_{tag}": min((c[tag] for c in conflicts if tag in c), default=None)
+               for tag in ("minTTC", "PET")}}
 
 
 def observe(traci, plan: dict) -> dict:

@@ -17,6 +17,7 @@ from collections import Counter
 from itertools import pairwise
 from pathlib import Path
 
+import networkx as nx
 import numpy as np
 from lxml import etree
 
@@ -31,6 +32,7 @@ EGO_DEPART_S = 120.0  # background traffic has filled the map by then
 LENGTH_TOLERANCE = 0.10
 FRINGE_M = 100.0  # a route starts and ends at least this far from the map border
 CANDIDATES_PER_ROUTE = 12
+MAX_TRIES_PER_ROUTE = 100  # a try fails where no road is left to go on or it misses the length
 MAX_LEGS = 40
 DIRECTION = {"s": "straight", "l": "left", "r": "right", "t": "u_turn", "L": "left",
              "R": "right"}
@@ -43,16 +45,16 @@ def pick_ego_routes(net, count: int, length: float, seed: int) -> list[dict]:
     if len(inner) < 2:
         raise RoadweaverError("ego routes: the map has no two roads away from its fringe")
     rng = np.random.default_rng([seed, 37])
+    graph = _edge_graph(net)
     candidates = []
-    for _ in range(count * CANDIDATES_PER_ROUTE):
-        edges = _chained_route(net, inner, length, rng)
-        if edges is None:
-            continue
-        found = situations(edges)
-        if not any(kind.startswith("u_turn@") for kind in found):
-            candidates.append({"edges": [e.getID() for e in edges],
-                               "length_m": round(sum(e.getLength() for e in edges), 1),
-                               "situations": found})
+    for _ in range(count * MAX_TRIES_PER_ROUTE):
+        if len(candidates) == count * CANDIDATES_PER_ROUTE:
+            break
+        edges = _chained_route(net, graph, inner, length, rng)
+        if edges is not None:
+            candidates.append({"edges": edges, "situations": situations(net, edges),
+                               "length_m": round(sum(net.getEdge(e).getLength()
+                                                     for e in edges), 1)})
     if len(candidates) < count:
         raise RoadweaverError(f"ego routes: found {len(candidates)} routes of {length:g} m "
                               f"± {100 * LENGTH_TOLERANCE:g} %, asked for {count}; ask for "
@@ -67,11 +69,11 @@ def pick_ego_routes(net, count: int, length: float, seed: int) -> list[dict]:
     return chosen
 
 
-def situations(edges: list) -> dict[str, int]:
-    """The turns of a route (edge sequence) by direction and junction control, and the turns
+def situations(net, edge_ids: list[str]) -> dict[str, int]:
+    """The turns of a route (SUMO edge ids) by direction and junction control, and the turns
     that need a lane change before them."""
     found = Counter()
-    for a, b in pairwise(edges):
+    for a, b in pairwise(net.getEdge(e) for e in edge_ids):
         links = a.getOutgoing().get(b, [])
         if not links:
             continue
@@ -84,7 +86,11 @@ def situations(edges: list) -> dict[str, int]:
 def write_ego_routes(folder: Path, routes: list[dict], net) -> None:
     """``ego_routes.rou.xml`` (the ``ego`` type, each route and an ego vehicle on it, for
     ``sumo -c scenario.sumocfg --route-files demand.rou.xml,ego_routes.rou.xml``),
-    ``routes.json`` (each route's length, edges and situations) and ``carla_routes.xml``."""
+    ``routes.json`` (each route's length, edges and situations), ``carla_routes.xml`` and
+    one ``ego_route_K.xosc`` per route (OpenSCENARIO on the ``map.xodr`` already in
+    ``folder``)."""
+    from .openscenario import write_openscenario
+
     root = etree.Element("routes")
     etree.SubElement(root, "vType", id=EGO_TYPE, vClass="passenger", color="1,0,0",
                      speedFactor="1", speedDev="0")
@@ -96,6 +102,7 @@ def write_ego_routes(folder: Path, routes: list[dict], net) -> None:
     write_xml(root, Path(folder) / ROUTES_FILE)
     (Path(folder) / LIST_FILE).write_text(json.dumps(routes, indent=2) + "\n", encoding="utf-8")
     write_carla_routes(Path(folder) / CARLA_FILE, routes, net)
+    write_openscenario(Path(folder), routes, net)
 
 
 def write_carla_routes(path: Path, routes: list[dict], net) -> None:
@@ -128,6 +135,11 @@ def read_ego_routes(folder: Path) -> list[dict]:
         raise RoadweaverError(f"cannot read {path}: {exc}") from None
 
 
+def _road(edge_id: str) -> str:
+    """The road of a SUMO edge: ``r7`` for ``r7_f`` and ``r7_b``."""
+    return edge_id.rsplit("_", 1)[0]
+
+
 def _inner_edges(net) -> list:
     """Roads cars may drive whose both ends lie farther than FRINGE_M from the border."""
     x0, y0, x1, y1 = net.getBoundary()
@@ -136,25 +148,47 @@ def _inner_edges(net) -> list:
         x, y = node.getCoord()[:2]
         return min(x - x0, y - y0, x1 - x, y1 - y) > FRINGE_M
 
-    return sorted((e for e in net.getEdges(withInternal=False)
-                   if e.allows("passenger") and inside(e.getFromNode())
-                   and inside(e.getToNode())), key=lambda e: e.getID())
+    return sorted(e.getID() for e in net.getEdges(withInternal=False)
+                  if e.allows("passenger") and inside(e.getFromNode()) and inside(e.getToNode()))
 
 
-def _chained_route(net, inner: list, length: float, rng) -> list | None:
+def _edge_graph(net) -> nx.DiGraph:
+    """Edges that cars may drive as nodes, a link for each turn but U-turns, weighted by the
+    length of the edge turned into."""
+    graph = nx.DiGraph()
+    for edge in net.getEdges(withInternal=False):
+        for after, links in edge.getOutgoing().items():
+            if edge.allows("passenger") and after.allows("passenger") and any(
+                    c.getDirection() not in "tT" for c in links):
+                graph.add_edge(edge.getID(), after.getID(), length=after.getLength())
+    return graph
+
+
+def _chained_route(net, graph: nx.DiGraph, inner: list[str], length: float,
+                   rng) -> list[str] | None:
     """Shortest paths from a random inner edge through random inner waypoints, cut at the
-    first inner edge where the route is long enough; None if it misses the tolerance."""
+    first inner edge where the route is long enough; None if it misses the tolerance. No road
+    is driven twice: a route that comes back along a road tests less, and players that follow
+    OpenSCENARIO routes road by road (esmini) lose their way on it."""
     ends = set(inner)
     route = [inner[rng.integers(len(inner))]]
-    total = route[0].getLength()
+    used = {_road(route[0])}
+    total = net.getEdge(route[0]).getLength()
     for _ in range(MAX_LEGS):
         target = inner[rng.integers(len(inner))]
-        path, _ = net.getShortestPath(route[-1], target, vClass="passenger")
-        if not path or len(path) < 2:
+        if _road(target) in used:
             continue
+        free = nx.subgraph_view(graph, filter_node=lambda e: e == route[-1] or _road(e) not in used)
+        try:
+            path = nx.shortest_path(free, route[-1], target, weight="length")
+        except (nx.NetworkXNoPath, nx.NodeNotFound):
+            continue
+        if len({_road(e) for e in path[1:]}) < len(path) - 1:
+            continue  # the path itself drives a road both ways (round a block)
         for edge in path[1:]:
             route.append(edge)
-            total += edge.getLength()
+            used.add(_road(edge))
+            total += net.getEdge(edge).getLength()
             if total >= (1 - LENGTH_TOLERANCE) * length and edge in ends:
                 return route if total <= (1 + LENGTH_TOLERANCE) * length else None
     return None

@@ -29,6 +29,8 @@ class SuiteSpec:
     duration: float = 3600.0
     skeleton: str = "procedural"
     boundary: str = "ring"
+    ego_routes: int = 0
+    ego_length: float = 5000.0
 
     def __post_init__(self) -> None:
         _normalise(self)
@@ -52,12 +54,17 @@ class SuiteSpec:
         return [
             ScenarioSpec(density=d, vehicles=self.vehicles, width=self.width, height=self.height,
                          seed=s, style=style, skeleton=self.skeleton, duration=self.duration,
-                         boundary=self.boundary)
+                         boundary=self.boundary, ego_routes=self.ego_routes,
+                         ego_length=self.ego_length)
             for d in self.densities for style in self.styles for s in self.seeds
         ]  # fmt: skip
 
     def to_dict(self) -> dict:
+        """The fields, lists for tuples; the ego route fields only when the suite has some,
+        so that manifests of suites without them read as before."""
         data = asdict(self)
+        if not self.ego_routes:
+            del data["ego_routes"], data["ego_length"]
         return {k: list(v) if isinstance(v, tuple) else v for k, v in data.items()}
 
     @classmethod
@@ -88,7 +95,7 @@ def _normalise(suite: SuiteSpec) -> None:
         is_number = isinstance(value, (int, float)) and not isinstance(value, bool)
         return float(value) if is_number else value  # anything else: ScenarioSpec says why
 
-    for name in ("width", "height", "duration"):
+    for name in ("width", "height", "duration", "ego_length"):
         object.__setattr__(suite, name, as_float(getattr(suite, name)))
     if isinstance(suite.densities, tuple):
         object.__setattr__(suite, "densities", tuple(as_float(d) for d in suite.densities))
