@@ -1,7 +1,7 @@
 """Quality sweep of issue 2: densities x seeds at 2 km, 500 vehicles over 1 h, full validation.
 
 Usage: python bench/quality_sweep.py [--densities 10,20,30,40,60] [--seeds 0-4] [--styles mixed]
-       [--skeleton learned|procedural] [--boundary open|ring]
+       [--skeleton learned|procedural] [--boundary open|ring] [--rules de|us|priority]
 Prints one row per scenario and a summary against the issue's thresholds; writes JSON next to it.
 """
 
@@ -34,6 +34,7 @@ def main() -> None:
     ap.add_argument("--size", type=float, default=2000.0)
     ap.add_argument("--skeleton", default="learned", help="learned or procedural")
     ap.add_argument("--boundary", default="open", help="open or ring")
+    ap.add_argument("--rules", default="de", help="de, us or priority")
     ap.add_argument("--vehicles", type=int, default=500)
     ap.add_argument("--json", type=Path, default=Path("bench/results/quality_sweep.json"))
     args = ap.parse_args()
@@ -45,7 +46,8 @@ def main() -> None:
                 for seed in seeds_arg(args.seeds):
                     spec = ScenarioSpec(density=density, vehicles=args.vehicles, seed=seed,
                                         style=style, width=args.size, height=args.size,
-                                        skeleton=args.skeleton, boundary=args.boundary)
+                                        skeleton=args.skeleton, boundary=args.boundary,
+                                        rules=args.rules)
                     start = time.perf_counter()
                     try:
                         res = make_scenario(spec, Path(tmp) / spec.name)

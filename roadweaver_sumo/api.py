@@ -91,7 +91,8 @@ def generate_map(spec: ScenarioSpec) -> HDMap:
         graph = closest_map(spec)[1]
     else:
         graph = expand_skeleton(spec, make_skeleton(spec))
-    return build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights)
+    return build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights,
+                       rules=spec.rules)
 
 
 def write_map(hdmap: HDMap, folder: str | Path, template: str = "urban") -> dict[str, Path]:

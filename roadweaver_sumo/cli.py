@@ -27,7 +27,7 @@ from pathlib import Path
 from . import __version__, children
 from .cli_parser import PROG, build_parser
 from .errors import RoadweaverError
-from .spec import PRIOR_RANGES, ScenarioSpec, parse_size
+from .spec import PRIOR_RANGES, ScenarioSpec, parse_size, parse_vehicle_mix
 from .staging import remove_staged
 
 EXIT_FAILED_CHECKS = 1
@@ -114,6 +114,9 @@ def _make_scenario(args) -> int:
         style=args.style,
         skeleton=args.skeleton,
         boundary=args.boundary,
+        rules=args.rules,
+        vehicle_mix=parse_vehicle_mix(args.vehicle_mix),
+        departures=args.departures,
         duration=args.duration,
         like=like,
         ego_routes=args.ego_routes,
@@ -270,7 +273,9 @@ def _make_suite(args) -> int:
     suite = SuiteSpec(densities=parse_densities(args.densities), styles=parse_styles(args.styles),
                       seeds=parse_seeds(args.seeds), width=width, height=height,
                       vehicles=args.vehicles, duration=args.duration, skeleton=args.skeleton,
-                      boundary=args.boundary, ego_routes=args.ego_routes,
+                      boundary=args.boundary, rules=args.rules,
+                      vehicle_mix=parse_vehicle_mix(args.vehicle_mix), departures=args.departures,
+                      ego_routes=args.ego_routes,
                       ego_length=args.ego_length)  # fmt: skip
     total = len(suite.scenarios())
     progress = Progress(total, enabled=not (args.quiet or args.json))

@@ -16,6 +16,9 @@ from .errors import RoadweaverError
 from .spec import (
     BOUNDARIES,
     DEFAULT_EGO_LENGTH_M,
+    DEFAULT_RULES,
+    DEFAULT_VEHICLE_MIX,
+    DEPARTURES,
     MAX_DENSITY,
     MAX_DURATION_S,
     MAX_EGO_LENGTH_M,
@@ -29,11 +32,19 @@ from .spec import (
     MIN_ROAD_NODES,
     MIN_SIDE_M,
     PRIOR_RANGES,
+    RULES,
     SKELETONS,
     STYLES,
 )
 
 PROG = "roadweaver-sumo"
+RULES_HELP = ("regional traffic rules that choose each junction's control: de (right-before-left "
+              "in residential streets, stop signs onto arterials), us (all-way stops, stop "
+              "signs), priority (yield at every junction without a light)")
+MIX_HELP = ("vehicle classes and their shares of the trips, SUMO's classes with SUMO's default "
+            "types: passenger, truck, bus, motorcycle, bicycle, delivery")
+DEFAULT_MIX_TEXT = ",".join(f"{k}:{v:g}" for k, v in DEFAULT_VEHICLE_MIX.items())
+DEPARTURES_HELP = "random: uniform random departure times (randomTrips --random-depart); even"
 BOUNDARY_HELP = ("open: roads run off the map edge, as in a map cut out of a town; ring: a ring "
                  "road just inside the border closes the map")
 #: what each structural prior of the learned model's condition means (data/condition.py)
@@ -125,6 +136,11 @@ def build_parser() -> argparse.ArgumentParser:
                       help="how the arterial roads are made")
     make.add_argument("--boundary", default="open", metavar=_choices(BOUNDARIES),
                       help=BOUNDARY_HELP)
+    make.add_argument("--rules", default=DEFAULT_RULES, metavar=_choices(RULES),
+                      help=RULES_HELP)
+    make.add_argument("--vehicle-mix", default=DEFAULT_MIX_TEXT, help=MIX_HELP)
+    make.add_argument("--departures", default="random", metavar=_choices(DEPARTURES),
+                      help=DEPARTURES_HELP)
     make.add_argument("--duration", type=float, default=3600.0, help=DURATION_HELP)
     make.add_argument("--like", type=Path, metavar="FILE",
                       help="a map like this road network: an OpenStreetMap extract (.osm, "
@@ -209,6 +225,11 @@ def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:
                        help="how the arterial roads are made")  # same default as make-scenario
     suite.add_argument("--boundary", default=make.get_default("boundary"),
                        metavar=_choices(BOUNDARIES), help=BOUNDARY_HELP)
+    suite.add_argument("--rules", default=DEFAULT_RULES, metavar=_choices(RULES),
+                       help=RULES_HELP)
+    suite.add_argument("--vehicle-mix", default=DEFAULT_MIX_TEXT, help=MIX_HELP)
+    suite.add_argument("--departures", default="random", metavar=_choices(DEPARTURES),
+                       help=DEPARTURES_HELP)
     suite.add_argument("--ego-routes", type=_number(int, 0, MAX_EGO_ROUTES), default=0,
                        help="ego routes per scenario, for 'drive-suite'")
     suite.add_argument("--ego-length", type=_number(float, MIN_EGO_LENGTH_M, MAX_EGO_LENGTH_M),

@@ -119,7 +119,8 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
         with stage("hdmap ...", "hdmap"):
             from .hdmap import build_hdmap, hdmap_metrics
 
-            hdmap = build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights)
+            hdmap = build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights,
+                                rules=spec.rules)
         with stage("export ...", "export"):
             from .export.map_files import write_map_files
 
@@ -145,7 +146,8 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
         from .scenario.demand import write_demand
         from .scenario.sumocfg import write_sumocfg
 
-        write_demand(folder, vehicles=spec.vehicles, duration=spec.duration, seed=spec.seed)
+        write_demand(folder, vehicles=spec.vehicles, duration=spec.duration, seed=spec.seed,
+                     vehicle_mix=spec.vehicle_mix, departures=spec.departures)
         write_sumocfg(folder, duration=spec.duration, seed=spec.seed)
     if spec.ego_routes:
         with stage(f"{spec.ego_routes} ego routes of {spec.ego_length:g} m ...", "ego_routes"):

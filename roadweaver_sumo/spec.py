@@ -21,6 +21,20 @@ BOUNDARIES = ("open", "ring")
 LEGACY_BOUNDARY = "ring"  # of a spec or suite written before there was a choice
 TOWN_MARGIN = 150.0  # metres of the town an open map is cut out of, beyond each side
 SKELETONS = ("learned", "procedural")
+#: regional traffic rules, which choose each junction's control (``hdmap.control``)
+RULES = ("de", "us", "priority")
+DEFAULT_RULES = "de"
+LEGACY_RULES = "priority"  # of a spec or suite written before there was a choice
+#: SUMO vehicle classes a demand may mix (each gets SUMO's default vType of its class), and
+#: the default mix: shares of the trips (``scenario.demand``)
+VEHICLE_CLASSES = ("passenger", "truck", "bus", "motorcycle", "bicycle", "delivery")
+#: Trucks and bicycles only on request: at a tight right-before-left junction SUMO lets a car
+#: or a creeping bicycle go while a turning truck's body still fills the junction (a junction
+#: collision in about one of 50 town scenarios with 5 % trucks).
+DEFAULT_VEHICLE_MIX = {"passenger": 0.95, "motorcycle": 0.05}
+LEGACY_VEHICLE_MIX = {"passenger": 1.0}
+DEPARTURES = ("random", "even")  # uniform random times (randomTrips --random-depart), evenly
+LEGACY_DEPARTURES = "even"
 MAX_SIDE_M = 50_000.0
 MIN_SIDE_M = 200.0
 MAX_VEHICLES = 1_000_000
@@ -41,7 +55,7 @@ PRIOR_RANGES = {"gridness": (0.0, 1.0), "radialness": (-1.0, 1.0),
 
 # Stage ids for np.random.default_rng([seed, STAGE]): each stage draws from its own stream, so
 # changing one stage never shifts the random numbers of another.
-STAGE_SKELETON, STAGE_GROWTH, STAGE_FILL = 1, 2, 4
+STAGE_SKELETON, STAGE_GROWTH, STAGE_FILL, STAGE_DEMAND = 1, 2, 4, 5
 
 
 @dataclass(frozen=True)
@@ -56,7 +70,12 @@ class ScenarioSpec:
     style: str = "mixed"
     skeleton: str = "learned"
     boundary: str = "open"
+    #: regional traffic rules: junction control (``hdmap.control``)
+    rules: str = DEFAULT_RULES
     duration: float = 3600.0
+    #: vehicle class -> share of the trips; departure times random or evenly spread
+    vehicle_mix: dict = field(default_factory=lambda: dict(DEFAULT_VEHICLE_MIX))
+    departures: str = "random"
     geo_origin: tuple[float, float] = DEFAULT_GEO_ORIGIN
     version: str = field(default=__version__)
     #: structural priors of the learned model's condition, None: the style's (or the city's)
@@ -96,6 +115,12 @@ class ScenarioSpec:
         if self.boundary not in BOUNDARIES:
             raise RoadweaverError(
                 f"unknown boundary {self.boundary!r}; choose one of {', '.join(BOUNDARIES)}")
+        if self.rules not in RULES:
+            raise RoadweaverError(f"unknown rules {self.rules!r}; choose one of {', '.join(RULES)}")
+        _check_vehicle_mix(self.vehicle_mix)
+        if self.departures not in DEPARTURES:
+            raise RoadweaverError(f"unknown departures {self.departures!r}; choose one of "
+                                  f"{', '.join(DEPARTURES)}")
         _check_seed("--seed", self.seed)
         for name, (low, high) in PRIOR_RANGES.items():
             value = getattr(self, name)
@@ -175,13 +200,20 @@ class ScenarioSpec:
         return np.random.default_rng([self.seed, stage])
 
     def to_json(self) -> str:
-        """The spec as ``spec.json`` writes it. A ring boundary, which every spec had before
-        there was a choice, is left unsaid, so that a suite built then rebuilds to the same
-        bytes (reading supplies it: :data:`LEGACY_BOUNDARY`)."""
+        """The spec as ``spec.json`` writes it. A ring boundary, priority rules, cars only and
+        even departures, which every spec had before there was a choice, are left unsaid, so
+        that a suite built then rebuilds to the same bytes (reading supplies them: the
+        ``LEGACY_*`` values)."""
         data = asdict(self)
         data["geo_origin"] = list(self.geo_origin)
         if data["boundary"] == LEGACY_BOUNDARY:
             del data["boundary"]
+        if data["rules"] == LEGACY_RULES:
+            del data["rules"]
+        if data["vehicle_mix"] == LEGACY_VEHICLE_MIX:
+            del data["vehicle_mix"]
+        if data["departures"] == LEGACY_DEPARTURES:
+            del data["departures"]
         for name in (*PRIOR_RANGES, "like"):  # unset: left out, as in specs written before
             if data[name] is None:
                 del data[name]
@@ -200,10 +232,39 @@ class ScenarioSpec:
     @classmethod
     def from_dict(cls, data: dict) -> ScenarioSpec:
         """The spec of a parsed ``spec.json`` or manifest entry: fields this version does not
-        know are ignored, a missing boundary is the ring every spec had before the choice."""
-        data = {"boundary": LEGACY_BOUNDARY, **data}
+        know are ignored, a missing boundary, rule set, vehicle mix or departure choice is the
+        value every spec had before the choice."""
+        data = {"boundary": LEGACY_BOUNDARY, "rules": LEGACY_RULES,
+                "vehicle_mix": LEGACY_VEHICLE_MIX, "departures": LEGACY_DEPARTURES, **data}
         data["geo_origin"] = tuple(data.get("geo_origin", DEFAULT_GEO_ORIGIN))
         return cls(**{k: v for k, v in data.items() if k in cls.__dataclass_fields__})
+
+
+def parse_vehicle_mix(text: str) -> dict[str, float]:
+    """``"passenger:0.9,truck:0.1"`` -> {"passenger": 0.9, "truck": 0.1}; checked by the spec."""
+    mix = {}
+    for item in str(text).split(","):
+        name, _, share = item.strip().partition(":")
+        try:
+            mix[name] = float(share)
+        except ValueError:
+            raise RoadweaverError(f"--vehicle-mix: {item.strip()!r} is not class:share, e.g. "
+                                  "truck:0.1") from None
+    return mix
+
+
+def _check_vehicle_mix(mix) -> None:
+    if not isinstance(mix, dict) or not mix:
+        raise RoadweaverError("--vehicle-mix must name at least one vehicle class")
+    for name, share in mix.items():
+        if name not in VEHICLE_CLASSES:
+            raise RoadweaverError(f"--vehicle-mix: unknown vehicle class {name!r}; choose from "
+                                  f"{', '.join(VEHICLE_CLASSES)}")
+        if isinstance(share, bool) or not isinstance(share, (int, float)) or \
+                not math.isfinite(share) or share < 0:
+            raise RoadweaverError(f"--vehicle-mix: the share of {name} must be a number >= 0")
+    if not sum(mix.values()) > 0:
+        raise RoadweaverError("--vehicle-mix: the shares add up to 0")
 
 
 def parse_size(text: str) -> tuple[float, float]:

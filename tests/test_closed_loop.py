@@ -96,7 +96,7 @@ def test_the_readme_example_controller_keeps_signals_and_limits(scenario):
     for route in (0, 1):
         report = rw.closed_loop.run(scenario, module.control, route=route)
         assert report["arrived"], report
-        assert not {"red_light", "speeding"} & set(report["infraction_counts"]), report
+        assert not {"red_light", "speeding", "stop_sign"} & set(report["infraction_counts"]), report
 
 
 def test_carla_route_files_lie_on_connected_lanes_of_the_xodr(scenario):
@@ -272,3 +272,28 @@ def test_near_misses_come_from_sumos_ssm_device(scenario):
     for c in conflicts:
         assert c["other"] and c["time"] > 0
         assert c.get("minTTC", ttc) < ttc or c.get("PET", pet) < pet
+
+
+def test_stop_signs_are_kept_by_sumo_and_the_example_and_run_by_the_naive_controller(tmp_path):
+    """Under US rules most junctions have stop signs: SUMO's driver and the README's example
+    controller stand still at each; the naive controller rolls through and each time is a
+    stop_sign infraction naming the lane and SUMO's link state (s: stop, w: all-way stop)."""
+    import importlib.util
+
+    spec = rw.ScenarioSpec(density=30, vehicles=100, duration=600, seed=4, rules="us",
+                           ego_routes=1, ego_length=2500)
+    folder = tmp_path / "us"
+    rw.make_scenario(spec, folder, validate=False)
+    route = json.loads((folder / "routes.json").read_text())[0]
+    assert any("_stop" in kind for kind in route["situations"])
+    assert rw.closed_loop.run(folder, "sumo", route=0)["infractions"] == []
+    example = importlib.util.spec_from_file_location(
+        "my_stack", Path(__file__).resolve().parents[1] / "docs/examples/my_stack.py")
+    module = importlib.util.module_from_spec(example)
+    example.loader.exec_module(module)
+    report = rw.closed_loop.run(folder, module.control, route=0)
+    assert report["arrived"] and "stop_sign" not in report["infraction_counts"], report
+    naive = rw.closed_loop.run(folder, "naive", route=0)
+    signs = [i for i in naive["infractions"] if i["type"] == "stop_sign"]
+    assert signs and all(i["link_state"] in "sw" and i["lane"].rsplit("_", 1)[0] in
+                         route["edges"] for i in signs)

@@ -10,10 +10,10 @@ import pytest
 from shapely.geometry import LineString, Point, Polygon
 
 from roadweaver_sumo.hdmap import LANE_CONFIGS, build_hdmap, hdmap_metrics, lane_reachability
+from roadweaver_sumo.hdmap.control import junction_control
 from roadweaver_sumo.hdmap.geometry import (
     arc_lengths,
 )
-from roadweaver_sumo.hdmap.junctions import junction_type
 from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
 
@@ -198,21 +198,35 @@ def test_short_road_keeps_a_lane_section():
     assert section.s_end - section.s_start >= 0.2 * 12.0 - 1e-9
 
 
-def test_junction_types():
-    assert junction_type(["local"]) == "dead_end"
-    assert junction_type(["arterial", "arterial"]) == "priority"
-    assert junction_type(["arterial", "arterial", "local"]) == "priority"  # side street
-    assert junction_type(["arterial", "arterial", "collector"]) == "priority"
-    assert junction_type(["arterial", "arterial", "arterial"]) == "traffic_light"
-    assert junction_type(["arterial", "arterial", "local", "local"]) == "traffic_light"
-    assert junction_type(["arterial", "collector", "local"]) == "priority"
-    assert junction_type(["arterial", "collector", "local", "local"]) == "traffic_light"
-    assert junction_type(["arterial"] * 4, traffic_lights=False) == "priority"
-    hd = build_hdmap(grid_with_arterial_cross())
+def test_junction_controls_follow_the_classes_and_the_rules():
+    """Lights where arterials cross (every rule set); under ``priority`` rules all else yields;
+    ``de``: right-before-left among residential streets, a stop onto an arterial; ``us``:
+    all-way stops at minor four-ways, stop signs elsewhere; a road that just goes on through
+    a two-arm node and a dead end are never controlled."""
+    for rules in ("de", "us", "priority"):
+        assert junction_control(["local"], rules) == "dead_end"
+        assert junction_control(["local", "local"], rules) == "priority"
+        assert junction_control(["arterial", "arterial"], rules) == "priority"
+        assert junction_control(["arterial", "arterial", "arterial"], rules) == "traffic_light"
+        assert junction_control(["arterial", "arterial", "local", "local"], rules) == \
+            "traffic_light"
+        assert junction_control(["arterial", "collector", "local", "local"], rules) == \
+            "traffic_light"
+    cases = (["local"] * 3, ["local"] * 4, ["collector", "collector", "local", "local"],
+             ["arterial", "arterial", "local"], ["collector", "collector", "local"])
+    expected = {"de": ["right_before_left", "right_before_left", "priority", "priority_stop",
+                       "priority"],
+                "us": ["priority_stop", "allway_stop", "allway_stop", "priority_stop",
+                       "priority_stop"],
+                "priority": ["priority"] * 5}
+    for rules, controls in expected.items():
+        assert [junction_control(classes, rules) for classes in cases] == controls
+    assert junction_control(["arterial"] * 4, "us", traffic_lights=False) == "priority_stop"
+    hd = build_hdmap(grid_with_arterial_cross(), rules="priority")
     types = {j: hd.junctions[j].type for j in hd.junctions}
     assert types[4] == "traffic_light"
     assert all(types[j] == "priority" for j in types if j != 4)
-    hd = build_hdmap(t_junction(), traffic_lights=False)
+    hd = build_hdmap(t_junction(), traffic_lights=False, rules="priority")
     assert [hd.junctions[j].type for j in sorted(hd.junctions)] == ["priority"] + ["dead_end"] * 3
 
 

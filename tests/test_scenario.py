@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import subprocess
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -38,7 +39,8 @@ def _vehicles(demand: Path) -> list:
 
 def test_demand_has_exactly_the_requested_vehicles_spread_over_the_duration(tmp_path, grid_net):
     folder = _scenario_dir(tmp_path, grid_net)
-    demand = write_demand(folder, vehicles=137, duration=300.0, seed=5)
+    demand = write_demand(folder, vehicles=137, duration=300.0, seed=5, departures="even",
+                          vehicle_mix={"passenger": 1.0})
     vehicles = _vehicles(demand)
     assert len(vehicles) == 137
     departs = [float(v.get("depart")) for v in vehicles]
@@ -47,6 +49,25 @@ def test_demand_has_exactly_the_requested_vehicles_spread_over_the_duration(tmp_
     routes = [v.find("route").get("edges").split() for v in vehicles]
     assert all(len(r) >= 2 and r[0] != r[-1] for r in routes)
     assert sorted(p.name for p in folder.iterdir()) == ["demand.rou.xml", "map.net.xml"]
+
+
+def test_demand_mixes_sumo_vehicle_classes_departing_at_random_times(tmp_path, grid_net):
+    """A mix of classes: one SUMO vType per class (SUMO's defaults for it), each vehicle's
+    class drawn by its share; departures random in [0, duration), in order, not a metronome."""
+    mix = {"passenger": 0.5, "truck": 0.25, "bicycle": 0.25}
+    demand = write_demand(_scenario_dir(tmp_path, grid_net), vehicles=200, duration=600.0,
+                          seed=3, vehicle_mix=mix)
+    root = etree.parse(str(demand)).getroot()
+    assert {t.get("id"): t.get("vClass") for t in root.iter("vType")} == {
+        "bicycle": "bicycle", "passenger": "passenger", "truck": "truck"}
+    kinds = Counter(v.get("type") for v in root.iter("vehicle"))
+    assert sum(kinds.values()) == 200
+    for name, share in mix.items():  # binomial: within 4 standard deviations
+        assert abs(kinds[name] - 200 * share) < 4 * (200 * share * (1 - share)) ** 0.5
+    departs = [float(v.get("depart")) for v in root.iter("vehicle")]
+    gaps = [b - a for a, b in zip(departs, departs[1:])]
+    assert departs == sorted(departs) and 0 <= departs[0] and departs[-1] < 600.0
+    assert max(gaps) > 3 * min(gaps) + 1.0  # uneven, as arrivals are
 
 
 def test_demand_is_byte_identical_for_the_same_seed_and_differs_for_another(tmp_path, grid_net):

@@ -104,3 +104,18 @@ def test_check_suite_names_the_line_where_a_rebuilt_map_really_changed(suite, tm
     out = capsys.readouterr().out
     assert (f"{NAMES[0]}: regenerated plain/map.nod.xml differs from the manifest: line "
             in out) and 'id="n1"' in out
+
+
+def test_legacy_choices_reach_the_scenarios(tmp_path):
+    """A suite asked for the ring boundary and priority rules (the values spec.json leaves
+    unsaid) builds its scenarios with them, not with make-scenario's defaults."""
+    out = tmp_path / "legacy"
+    assert main(["make-suite", "--densities", "20", "--styles", "grid", "--seeds", "0",
+                 "--size", "500", "--vehicles", "15", "--duration", "60", "--skeleton",
+                 "procedural", "--boundary", "ring", "--rules", "priority", "--quiet", "--out",
+                 str(out)]) == 0
+    spec = json.loads((out / NAMES[0] / "spec.json").read_text())
+    assert "boundary" not in spec and "rules" not in spec  # legacy values are left unsaid
+    nodes = (out / NAMES[0] / "plain" / "map.nod.xml").read_text()
+    assert 'type="priority"' in nodes
+    assert not re.search(r'type="(right_before_left|priority_stop|allway_stop)"', nodes)

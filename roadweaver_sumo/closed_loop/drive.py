@@ -9,8 +9,10 @@ driver drive (``--controller sumo``): the reference that must finish every route
 
 Infractions are detected from the run itself: a red light is a signal link the ego passes
 whose state was red in the step it crossed the stop line (read from the traffic light itself
-after the step, beside what the ego saw before it); speeding is a stretch above the lane's
-limit (``score``); collisions are SUMO's, junctions included. libsumo holds one simulation per
+after the step, beside what the ego saw before it); a stop sign is a link of SUMO's state
+``s`` or ``w`` (all-way) the ego takes without having stood still within STOP_ZONE_M of its
+line; speeding is a stretch above the lane's limit (``score``); collisions are SUMO's,
+junctions included; near misses come from SUMO's SSM device. libsumo holds one simulation per
 process.
 """
 
@@ -37,6 +39,8 @@ BLOCKED_S = 180.0  # standing this long (not at a red light) ends the run as blo
 ROUTE_AHEAD = 5  # edges of the route ahead in an observation
 MIN_SPEED_MS = 3.0  # the run's time limit assumes at least this average speed, plus BLOCKED_S
 RED = "rR"
+STOP_STATES = "sw"  # SUMO link states: a stop sign, an all-way stop
+HALT_MS, STOP_ZONE_M = 0.1, 10.0  # standing still this close to a stop line counts as a stop
 SSM_THRESHOLDS = "1.5 1.0"  # s: TTC and PET below which SUMO's SSM device logs a conflict
 
 Controller = Callable[[dict], dict]
@@ -141,12 +145,13 @@ def _drive(traci, plan: dict, control: Controller | None, ssm_file: Path) -> dic
     deadline = traci.simulation.getTime() + plan["length_m"] / MIN_SPEED_MS + BLOCKED_S
     edges, infractions = set(plan["edges"]), []
     speeding_since, speeding_reported, standing_since, arrived = None, False, None, False
+    halted_on = None  # the last lane the ego stood still on, near its end
     sumo_s = loop_s = 0.0
     steps = 0
     while True:
         began = time.perf_counter()
         now = traci.simulation.getTime()
-        obs = observe(traci, plan)
+        obs = observe(traci, plan, halted_on)
         signal = obs["next_signal"]
         # inside a junction the lane speed is a curve speed, not a legal limit
         if not obs["edge"].startswith(":") and over_limit(obs["speed"], obs["speed_limit"]):
@@ -184,6 +189,14 @@ def _drive(traci, plan: dict, control: Controller | None, ssm_file: Path) -> dic
         crossed = _crossed_red(traci, signal)
         if crossed:
             infractions.append({"type": "red_light", "time": now, **crossed})
+        lane = traci.vehicle.getLaneID(EGO)
+        if lane != obs["lane"] and not obs["lane"].startswith(":"):
+            sign = _passed_stop_sign(traci, obs["lane"], lane, halted_on == obs["lane"])
+            if sign:
+                infractions.append({"type": "stop_sign", "time": now, **sign})
+        if traci.vehicle.getSpeed(EGO) < HALT_MS and not lane.startswith(":") and \
+                traci.lane.getLength(lane) - traci.vehicle.getLanePosition(EGO) < STOP_ZONE_M:
+            halted_on = lane
         road = traci.vehicle.getRoadID(EGO)
         if not road.startswith(":") and road not in edges:
             infractions.append({"type": "off_route", "time": now + dt, "edge": road})
@@ -224,8 +237,9 @@ def near_misses(ssm_file: Path) -> dict:
                for tag in ("minTTC", "PET")}}
 
 
-def observe(traci, plan: dict) -> dict:
-    """What a driving stack sees of the ego and around it this step."""
+def observe(traci, plan: dict, halted_on: str | None = None) -> dict:
+    """What a driving stack sees of the ego and around it this step (``halted_on``: the lane
+    the ego last stood still on near its end, which settles the stop at a stop sign)."""
     x, y = traci.vehicle.getPosition(EGO)
     edge = traci.vehicle.getRoadID(EGO)
     index = traci.vehicle.getRouteIndex(EGO)
@@ -255,7 +269,8 @@ def observe(traci, plan: dict) -> dict:
         px, py = traci.person.getPosition(pid)
         if math.hypot(px - x, py - y) <= RADIUS_M:
             persons.append({"id": pid, "x": px, "y": py, "distance": math.hypot(px - x, py - y)})
-    return {"time": traci.simulation.getTime(), "x": x, "y": y,
+    return {"time": traci.simulation.getTime(), "step_length": traci.simulation.getDeltaT(),
+            "x": x, "y": y,
             "angle": traci.vehicle.getAngle(EGO), "speed": traci.vehicle.getSpeed(EGO),
             "acceleration": traci.vehicle.getAcceleration(EGO), "edge": edge,
             "lane": traci.vehicle.getLaneID(EGO), "lane_index": traci.vehicle.getLaneIndex(EGO),
@@ -263,6 +278,7 @@ def observe(traci, plan: dict) -> dict:
             "speed_limit": traci.vehicle.getAllowedSpeed(EGO), "next_speed_limit": next_limit,
             "route_ahead": ahead, "route_driven_m": traci.vehicle.getDistance(EGO),
             "route_length_m": plan["length_m"], "next_signal": signal,
+            "next_stop": _next_stop(traci, halted_on),
             "leader": None if not leader or not leader[0] else
             {"id": leader[0], "gap": leader[1]}, "vehicles": vehicles, "persons": persons}
 
@@ -276,6 +292,33 @@ def _apply(traci, action: dict, speed: float, dt: float) -> None:
     change = int(action.get("lane_change", 0))
     if change:
         traci.vehicle.changeLaneRelative(EGO, change, dt)
+
+
+def _next_stop(traci, halted_on: str | None) -> dict | None:
+    """The next stop sign along the route within ROUTE_AHEAD links: its distance, whether it
+    is an all-way stop, and whether the ego has already stopped for it."""
+    lane = traci.vehicle.getLaneID(EGO)
+    distance = traci.lane.getLength(lane) - traci.vehicle.getLanePosition(EGO)
+    for k, link in enumerate(traci.vehicle.getNextLinks(EGO)[:ROUTE_AHEAD]):
+        if link[5] in STOP_STATES and not (k == 0 and lane.startswith(":")):  # a sign's link
+            # leaves a road lane; inside a junction an internal link may read 's' too
+            return {"distance": round(distance, 3), "all_way": link[5] == "w",
+                    "stopped": k == 0 and halted_on == lane}
+        distance += link[7] + traci.lane.getLength(link[0])
+    return None
+
+
+def _passed_stop_sign(traci, before: str, now: str, halted: bool) -> dict | None:
+    """The stop sign the ego passed leaving lane ``before`` for lane ``now`` (the junction's
+    internal lane, or the next lane where it crossed the junction within a step) without
+    having stood still near the end of ``before``: SUMO's link states ``s`` (stop) and ``w``
+    (all-way stop)."""
+    links = traci.lane.getLinks(before)
+    used = [link for link in links if now in (link[4], link[0])]
+    if halted or not used or used[0][5] not in STOP_STATES:
+        return None
+    return {"lane": before, "link_state": used[0][5],
+            "junction": traci.lane.getEdgeID(now) if now.startswith(":") else None}
 
 
 def _crossed_red(traci, before: dict | None) -> dict | None:

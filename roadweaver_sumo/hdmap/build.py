@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import networkx as nx
 
+from .control import DEFAULT_RULES
 from .junctions import add_connectors, folding_turns, make_junctions
 from .lanes import build_road_lanes, lane_ends, make_roads, plan_reference_lines
 from .model import HDMap, Road
@@ -19,13 +20,15 @@ WIDEN_FACTOR, WIDEN_ROUNDS, BAN_ROUNDS = 1.25, 4, 3
 
 
 def build_hdmap(
-    G: nx.Graph, geo_origin: tuple[float, float] | None = None, *, traffic_lights: bool = True
+    G: nx.Graph, geo_origin: tuple[float, float] | None = None, *, traffic_lights: bool = True,
+    rules: str = DEFAULT_RULES,
 ) -> HDMap:
     """Build the lane-level HD map of a RoadGraph (paper Algorithm 1).
 
     ``geo_origin`` is the (lat, lon) of the local origin, written by exporters as the map's
-    geo-reference; by default ``G.graph["geo_origin"]`` if present. ``traffic_lights=False``
-    makes every junction but dead ends a priority junction (suburban maps).
+    geo-reference; by default ``G.graph["geo_origin"]`` if present. Junction control follows
+    the regional ``rules`` (``control.RULES``); ``traffic_lights=False`` leaves out the lights
+    (suburban maps).
     RepairLaneGeometry needs no pass of its own: connectors end exactly on the lanes they join
     and junction trims leave every road a lane section (see ``lanes.MAX_TRIM_SHARE``).
     """
@@ -37,7 +40,7 @@ def build_hdmap(
     )
     hd.roads = make_roads(G)  # RefineRoadGraph, AssignLaneConfig
     nodes = {n: G.nodes[n]["xy"] for n in G.nodes}
-    hd.junctions = make_junctions(nodes, hd.roads, traffic_lights)
+    hd.junctions = make_junctions(nodes, hd.roads, traffic_lights, rules)
     roads, junctions = list(hd.roads.values()), list(hd.junctions)
     for _ in range(WIDEN_ROUNDS + 1):
         tight = {lane.junction for lane in _lanes_and_connectors(hd, roads, junctions)}

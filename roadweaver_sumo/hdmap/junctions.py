@@ -12,6 +12,7 @@ from collections import defaultdict
 
 import numpy as np
 
+from .control import DEFAULT_RULES, junction_control
 from .geometry import (
     bezier_controls,
     bezier_sample,
@@ -32,28 +33,6 @@ HEADING_PROBE = 5.0  # m along a road used to measure its direction at a junctio
 LATERAL_ACCEL = 3.0  # m/s^2: connector speed limit sqrt(a * r_min) on tight turns
 PIVOT_GAP = 1e-6  # m: a boundary whose ends are closer starts and ends at one point
 PIVOT_CLEARANCE = 1e-7  # m: a U-turn arc's radius beyond its lane's half width (< PIVOT_GAP / 2)
-
-
-def junction_type(classes: list[str], traffic_lights: bool = True) -> str:
-    """Control type from the classes of the roads meeting at a node.
-
-    Traffic lights where two arterials cross or meet (three arterial arms, or two in a four-way
-    or larger junction) or an arterial meets a collector at a four-way (or larger) junction,
-    unless ``traffic_lights`` is off (suburban maps); dead ends get their own type; all else is
-    priority. A side street ending on an arterial (a T with two arterial arms) is a priority
-    junction, as in real towns: signalling every such T put 14 lights along one arterial of
-    the 2 km main-command map, with 25.9 s of mean waiting (11.5 s without them).
-    """
-    degree = len(classes)
-    arterials, collectors = classes.count("arterial"), classes.count("collector")
-    if degree == 1:
-        return "dead_end"
-    if not traffic_lights:
-        return "priority"
-    if (arterials >= 3 or (arterials >= 2 and degree >= 4)
-            or (arterials >= 1 and collectors >= 1 and degree >= 4)):
-        return "traffic_light"
-    return "priority"
 
 
 def junction_radii(directions: np.ndarray, half_widths: np.ndarray, lane_widths: np.ndarray,
@@ -102,9 +81,11 @@ def junction_radii(directions: np.ndarray, half_widths: np.ndarray, lane_widths:
 
 
 def make_junctions(
-    nodes: dict[int, tuple[float, float]], roads: dict[int, Road], traffic_lights: bool = True
+    nodes: dict[int, tuple[float, float]], roads: dict[int, Road], traffic_lights: bool = True,
+    rules: str = DEFAULT_RULES,
 ) -> dict[int, Junction]:
-    """One junction per node with its incident roads, control type and trim radius."""
+    """One junction per node with its incident roads, control (``control``) and trim
+    radius."""
     incident: dict[int, list[int]] = defaultdict(list)
     for road in roads.values():
         incident[road.from_node].append(road.id)
@@ -123,7 +104,7 @@ def make_junctions(
         node: Junction(
             id=node,
             xy=(float(nodes[node][0]), float(nodes[node][1])),
-            type=junction_type([roads[r].road_class for r in rids], traffic_lights),
+            type=junction_control([roads[r].road_class for r in rids], rules, traffic_lights),
             radius=radius,
             roads=rids,
         )

@@ -21,7 +21,6 @@ from typing import Any
 
 import numpy as np
 
-JUNCTION_TYPES = ("traffic_light", "priority", "dead_end")
 MOVEMENTS = ("right", "straight", "left", "uturn")
 DIRECTIONS = ("f", "b")
 
@@ -122,7 +121,7 @@ class Junction:
 
     id: int
     xy: tuple[float, float]
-    type: str  # one of JUNCTION_TYPES
+    type: str  # one of control.CONTROLS (SUMO's node types)
     radius: float  # lane ends are trimmed back about this far from the centre
     roads: list[int]  # incident roads, sorted
     connectors: list[str] = field(default_factory=list)

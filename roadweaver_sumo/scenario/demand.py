@@ -1,12 +1,15 @@
-"""Traffic demand: an exact number of routable, seeded car trips, routed into ``demand.rou.xml``.
+"""Traffic demand: an exact number of routable, seeded trips of a vehicle mix (issue 36), routed
+into ``demand.rou.xml``.
 
 ``randomTrips.py`` draws origin/destination edges, but its vehicle count follows from
 ``--period`` (it can be off by one, and it drops pairs it could not place), and its own validation
 routes every trip twice more. So we ask it for more trips than needed, without validation, route
 them once with duarouter (``--ignore-errors`` drops the unroutable ones: that is the
 validation), keep the first ``vehicles`` routes between distinct edges, and give them ids
-``veh0..`` and evenly spread departures over [0, duration). Routes do not depend on the departure
-time (static free-flow weights), so re-timing keeps them valid. If too few trips were routable,
+``veh0..``, departures over [0, duration) (random, as real traffic arrives, or evenly spread)
+and vehicle classes drawn from the mix. Routes do not depend on the departure time (static
+free-flow weights), so re-timing keeps them valid; they are routed for cars, which every class
+of the mix may drive where cars may (the lanes allow all classes). If too few trips were routable,
 we sample again with a larger oversupply, deterministically. Every program runs inside the
 scenario folder with relative paths, so the output is byte-identical for the same inputs.
 
@@ -35,9 +38,11 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import numpy as np
 from lxml import etree
 
 from ..errors import RoadweaverError
+from ..spec import DEFAULT_VEHICLE_MIX, STAGE_DEMAND
 from ..sumo_tools import binary, python_tool, run
 from .xmlfile import write_xml
 
@@ -61,9 +66,13 @@ TRIP_ATTRIBUTES = 'departLane="best" departSpeed="max"'
 
 def write_demand(
     out_dir: Path, *, vehicles: int, duration: float, seed: int, net_file: str = "map.net.xml",
+    vehicle_mix: dict[str, float] | None = None, departures: str = "random",
 ) -> Path:
-    """Write ``out_dir/demand.rou.xml`` with exactly ``vehicles`` routed cars departing in
-    [0, duration); raise RoadweaverError when the net cannot provide that many routable trips."""
+    """Write ``out_dir/demand.rou.xml`` with exactly ``vehicles`` routed trips departing in
+    [0, duration), of the SUMO vehicle classes of ``vehicle_mix`` (class -> share; default
+    :data:`~roadweaver_sumo.spec.DEFAULT_VEHICLE_MIX`) at random or evenly spread times
+    (``departures``); raise RoadweaverError when the net cannot provide that many routable
+    trips."""
     out_dir = Path(out_dir)
     if vehicles < 1 or duration <= 0:
         raise RoadweaverError(
@@ -75,7 +84,8 @@ def write_demand(
     temporary = [_SAMPLE_TRIPS, _ROUTED_TRIPS, _SAMPLE_ROUTES]
     with _removed_afterwards(out_dir, temporary):
         routes = _sample_routes(out_dir, net_file, vehicles, duration, seed, min_distance)
-    _retime(routes, duration)
+    mix = DEFAULT_VEHICLE_MIX if vehicle_mix is None else vehicle_mix
+    _assign(routes, duration, np.random.default_rng([seed, STAGE_DEMAND]), mix, departures)
     return write_xml(routes, out_dir / DEMAND_FILE)
 
 
@@ -164,12 +174,31 @@ def _route(out_dir: Path, net_file: str, seed: int) -> None:
     run(args, out_dir, "duarouter")
 
 
-def _retime(routes: etree._Element, duration: float) -> None:
-    """Vehicles renamed ``veh<i>`` and departing at ``i * duration / n``: an even spread."""
+def _assign(routes: etree._Element, duration: float, rng: np.random.Generator,
+            mix: dict[str, float], departures: str) -> None:
+    """Vehicles renamed ``veh<i>``, given a vehicle class drawn from ``mix`` (a ``vType`` of
+    that SUMO class, with SUMO's defaults for it: length, speed, acceleration, lane-change
+    behaviour) and departing in order at uniform random times (as randomTrips'
+    ``--random-depart`` draws them) or at ``i * duration / n``. A mix of cars alone keeps
+    randomTrips' passenger type, as every demand of earlier versions did."""
     vehicles = routes.findall("vehicle")
+    n = len(vehicles)
+    times = np.sort(rng.uniform(0.0, duration, n)) if departures == "random" else \
+        np.arange(n) * duration / n
+    classes = sorted(name for name, share in mix.items() if share > 0)
+    typed = classes != [VEHICLE_CLASS]
+    if typed:
+        shares = np.array([mix[name] for name in classes], dtype=float)
+        drawn = rng.choice(len(classes), size=n, p=shares / shares.sum())
+        for vtype in routes.findall("vType"):  # randomTrips' own passenger type
+            routes.remove(vtype)
+        for k, name in enumerate(classes):
+            routes.insert(k, etree.Element("vType", id=name, vClass=name))
     for i, vehicle in enumerate(vehicles):
         vehicle.set("id", f"veh{i}")
-        vehicle.set("depart", f"{i * duration / len(vehicles):.2f}")
+        vehicle.set("depart", f"{times[i]:.2f}")
+        if typed:
+            vehicle.set("type", classes[drawn[i]])
 
 
 def _net_diagonal(net_path: Path) -> float:

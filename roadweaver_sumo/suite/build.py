@@ -113,9 +113,9 @@ def _build(spec: ScenarioSpec, folder: Path, busy: bool) -> None:
 
 
 def _spec_from_json(text: str) -> ScenarioSpec:
-    data = json.loads(text)
-    data["geo_origin"] = tuple(data["geo_origin"])
-    return ScenarioSpec(**data)
+    """The spec a worker builds: read as ``spec.json`` is, where fields left unsaid have their
+    legacy values (``ScenarioSpec(**data)`` gave a ring suite open maps)."""
+    return ScenarioSpec.from_dict(json.loads(text))
 
 
 def _unpack(files: dict[str, bytes], folder: Path) -> None:

@@ -8,10 +8,16 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 from ..errors import RoadweaverError
-from ..spec import LEGACY_BOUNDARY, ScenarioSpec
+from ..spec import (
+    LEGACY_BOUNDARY,
+    LEGACY_DEPARTURES,
+    LEGACY_RULES,
+    LEGACY_VEHICLE_MIX,
+    ScenarioSpec,
+)
 
 MAX_SCENARIOS = 10_000  # a larger grid is almost certainly a typo such as --seeds 0-99999
 
@@ -29,6 +35,9 @@ class SuiteSpec:
     duration: float = 3600.0
     skeleton: str = "procedural"
     boundary: str = "ring"
+    rules: str = LEGACY_RULES
+    vehicle_mix: dict = field(default_factory=lambda: dict(LEGACY_VEHICLE_MIX))
+    departures: str = LEGACY_DEPARTURES
     ego_routes: int = 0
     ego_length: float = 5000.0
 
@@ -54,15 +63,22 @@ class SuiteSpec:
         return [
             ScenarioSpec(density=d, vehicles=self.vehicles, width=self.width, height=self.height,
                          seed=s, style=style, skeleton=self.skeleton, duration=self.duration,
-                         boundary=self.boundary, ego_routes=self.ego_routes,
+                         boundary=self.boundary, rules=self.rules,
+                         vehicle_mix=dict(self.vehicle_mix), departures=self.departures,
+                         ego_routes=self.ego_routes,
                          ego_length=self.ego_length)
             for d in self.densities for style in self.styles for s in self.seeds
         ]  # fmt: skip
 
     def to_dict(self) -> dict:
-        """The fields, lists for tuples; the ego route fields only when the suite has some,
-        so that manifests of suites without them read as before."""
+        """The fields, lists for tuples; rules, vehicle mix and departures only when not the
+        values of earlier versions, the ego route fields only when the suite has some, so that
+        manifests of suites without them read as before."""
         data = asdict(self)
+        for name, legacy in (("rules", LEGACY_RULES), ("vehicle_mix", LEGACY_VEHICLE_MIX),
+                             ("departures", LEGACY_DEPARTURES)):
+            if data[name] == legacy:
+                del data[name]
         if not self.ego_routes:
             del data["ego_routes"], data["ego_length"]
         return {k: list(v) if isinstance(v, tuple) else v for k, v in data.items()}
@@ -76,7 +92,8 @@ class SuiteSpec:
         unknown = sorted(set(data) - known)
         if unknown:
             raise RoadweaverError(f"manifest: unknown suite field {unknown[0]!r}")
-        values = {"boundary": LEGACY_BOUNDARY, **data}
+        values = {"boundary": LEGACY_BOUNDARY, "rules": LEGACY_RULES,
+                  "vehicle_mix": LEGACY_VEHICLE_MIX, "departures": LEGACY_DEPARTURES, **data}
         for name in ("densities", "styles", "seeds"):
             if not isinstance(values.get(name), list):
                 raise RoadweaverError(f"manifest: suite field {name!r} must be a list")

@@ -34,6 +34,10 @@ FIGURES = tuple(t.figure for t in THRESHOLDS) + (
     "simulation.teleports_total",
     "simulation.mean_travel_time_s",
     "simulation.mean_waiting_time_s",
+    # waiting per vehicle on the approaches under each rule: where a changed driver model or
+    # SUMO version shows first (``validate.rule_coverage.rule_waits``)
+    *(f"simulation.rules.{rule}.waiting_s" for rule in ("signalised", "stop", "all_way_stop",
+                                                        "right_before_left", "yield")),
 )
 # Packages whose versions change the bytes of a scenario: a hash drift on a machine with other
 # versions is then explained rather than a mystery.

@@ -17,6 +17,7 @@ from ..errors import RoadweaverError
 from ..realism import realism_statistics
 from .net_metrics import loaded_net_metrics
 from .netgraph import load_net, road_edges, road_graph
+from .rule_coverage import rule_lines
 
 
 def evaluate_net(net_path: Path, area_km2: float | None = None) -> dict:
@@ -79,6 +80,7 @@ def summary_lines(result: dict) -> list[str]:
         (f"reachability: junctions {result['junction_reachability']:.4f}, lanes"
          f" {result['lane_reachability']:.4f}; lane-end gaps mean {al['mean']:.3f} m,"
          f" p95 {al['p95']:.3f} m, max {al['max']:.3f} m"),
+        *rule_lines(result["rules"]),
         "realism (issue 35; _inner: away from the border):",
         *_columns([f"{k} {'-' if v is None else f'{v:.4g}'}"
                    for k, v in sorted(result["realism"].items())]),

@@ -19,6 +19,7 @@ import sumolib
 from .. import metrics
 from .netgraph import internal_chain, lane_graph, load_net, road_edges, road_graph, road_junctions
 from .overlaps import net_overlaps
+from .rule_coverage import rule_coverage
 
 
 def net_metrics(net_path: Path, area_km2: float) -> dict:
@@ -40,6 +41,7 @@ def loaded_net_metrics(net: sumolib.net.Net, area_km2: float) -> dict:
         alignment=alignment_errors(net),
         # lanes drawn over each other outside junctions, not only centrelines that cross
         crossings_without_junction=len(net_overlaps(net)),
+        rules=rule_coverage(net),
     )
     return result
 

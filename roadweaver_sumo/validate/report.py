@@ -19,6 +19,7 @@ from ..errors import RoadweaverError
 from ..scenario.sumocfg import NET_FILE, end_time
 from .net_metrics import net_metrics
 from .netgraph import require_net
+from .rule_coverage import rule_lines
 from .simulation import started_simulation
 
 SCHEMA_VERSION = 1
@@ -170,6 +171,7 @@ def summary_lines(report: dict) -> list[str]:
             f" lanes {net['lane_reachability']:.4f}; lane-end gaps mean {al['mean']:.3f} m,"
             f" p95 {al['p95']:.3f} m, max {al['max']:.3f} m"
         ),
+        *(rule_lines(net["rules"])[:1] if "rules" in net else []),
         (
             f"simulation: {sim['arrived']}/{sc['vehicles']} arrived"
             f" ({100 * sim['arrived_ratio']:.1f} %), {sim['teleports_total']} teleports,"

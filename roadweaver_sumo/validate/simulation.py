@@ -28,9 +28,10 @@ from lxml import etree
 
 from .. import children
 from ..errors import RoadweaverError
-from ..scenario.sumocfg import SUMOCFG_FILE
+from ..scenario.sumocfg import NET_FILE, SUMOCFG_FILE
 from ..staging import scratch_dir
 from ..sumo_tools import child_env
+from .rule_coverage import approach_rules, rule_waits
 
 VEHICLE_TYPE = "DEFAULT_VEHTYPE"  # SUMO's default car (vClass passenger)
 VEHICLE_CLASS = "passenger"
@@ -182,7 +183,9 @@ def _simulate(cfg: str, tmp: str, wall_cap_s: float, routing_tasks: int = 0,
         libsumo.close()
     results = {"completed": completed, "sim_end_s": sim_end, **_read_statistics(stats),
                "collision_sites": _collision_sites(collisions),
-               "edge_flows": _edge_flows(edgedata), **routing[0]}  # fmt: skip
+               "edge_flows": _edge_flows(edgedata),
+               "rules": rule_waits(edgedata, approach_rules(Path(cfg).parent / NET_FILE))
+               if edgedata.exists() else {}, **routing[0]}  # fmt: skip
     timing = {
         "load_s": t1 - t0,
         "simulation_wall_s": t2 - t1,
@@ -251,7 +254,9 @@ def _allows_cars(libsumo, edge: str) -> bool:
 
 
 def _read_statistics(path: Path) -> dict:
-    """The figures we report from SUMO's ``--statistic-output`` file."""
+    """The figures we report from SUMO's ``--statistic-output`` file. SUMO counts bicycles
+    apart (``bikeTripStatistics``): they arrive like any vehicle; the trip means are those of
+    the motor vehicles."""
     root = etree.parse(str(path)).getroot()
 
     def number(tag: str, attr: str) -> float:
@@ -263,7 +268,8 @@ def _read_statistics(path: Path) -> dict:
         "inserted": int(number("vehicles", "inserted")),
         "running": int(number("vehicles", "running")),
         "waiting_to_insert": int(number("vehicles", "waiting")),
-        "arrived": int(number("vehicleTripStatistics", "count")),
+        "arrived": int(number("vehicleTripStatistics", "count")
+                       + number("bikeTripStatistics", "count")),
         "teleports_total": int(number("teleports", "total")),
         "teleports_jam": int(number("teleports", "jam")),
         "teleports_yield": int(number("teleports", "yield")),

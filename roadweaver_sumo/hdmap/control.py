@@ -1,0 +1,64 @@
+"""Junction control as towns choose it (issue 36): lights, priority, stop signs and
+right-before-left from the classes of the roads that meet and a regional rule set.
+
+A traffic-rule regression suite needs the rules a driving stack meets in the towns it will
+drive in, not one kind of junction. The rule sets follow what national traffic codes make
+common, judged by the classes of the roads meeting and the number of arms:
+
+* ``de`` (Germany, StVO): residential streets meet under right-before-left (the rule of
+  Tempo-30 zones, no signs); a local street joins a collector with a yield sign
+  (``priority``) and an arterial with a stop sign (``priority_stop``: the arterial's speed
+  leaves no time to judge gaps while rolling), where there is no light.
+* ``us`` (MUTCD practice): local four-way crossings and collector crossings are all-way stops;
+  every other minor approach stops (``priority_stop``).
+* ``priority``: every junction without a light is a priority junction (yield), as every map
+  of earlier versions was.
+
+Traffic lights are the same in every set: where two arterials cross or meet, or an arterial
+crosses a collector (``signalised``), on maps dense enough for lights. Dead ends are
+``dead_end``, and a road that just goes on through a two-arm node is ``priority``. The names are SUMO's node types; the exporters write each one in their format.
+"""
+
+from __future__ import annotations
+
+from ..spec import DEFAULT_RULES
+
+CONTROLS = ("traffic_light", "priority", "priority_stop", "right_before_left", "allway_stop",
+            "dead_end")
+
+
+def junction_control(classes: list[str], rules: str = DEFAULT_RULES,
+                     traffic_lights: bool = True) -> str:
+    """The control of a junction whose arms have road ``classes``, under ``rules``."""
+    degree = len(classes)
+    if degree == 1:
+        return "dead_end"
+    if traffic_lights and signalised(classes):
+        return "traffic_light"
+    if degree == 2:  # a road that just goes on (its class may change): nothing to control
+        return "priority"
+    locals_only = set(classes) == {"local"}
+    minor_roads = set(classes) <= {"local", "collector"}
+    if rules == "de":
+        if locals_only:
+            return "right_before_left"
+        if "local" in classes and "arterial" in classes:
+            return "priority_stop"
+        return "priority"
+    if rules == "us":
+        if degree >= 4 and minor_roads:
+            return "allway_stop"
+        return "priority_stop"
+    return "priority"
+
+
+def signalised(classes: list[str]) -> bool:
+    """Traffic lights where two arterials cross or meet (three arterial arms, or two in a
+    four-way or larger junction) or an arterial meets a collector at a four-way (or larger)
+    junction. A side street ending on an arterial (a T with two arterial arms) is not: in real
+    towns it is a priority junction, and signalling every such T puts a light at nearly every
+    side street of an arterial and more than doubles the mean waiting."""
+    degree = len(classes)
+    arterials, collectors = classes.count("arterial"), classes.count("collector")
+    return (arterials >= 3 or (arterials >= 2 and degree >= 4)
+            or (arterials >= 1 and collectors >= 1 and degree >= 4))

@@ -1,0 +1,104 @@
+"""Rule coverage of a SUMO net (issue 36): how many of each traffic-rule situation it holds.
+
+A traffic-rule regression suite is only as good as the situations it covers: a change to a
+driver model shows at a stop sign only if the suite has stop signs. ``report.json`` (``net.
+rules``) counts them on ``map.net.xml`` as SUMO built it, so that every scenario, ours or
+imported with ``evaluate``, is counted the same way.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+
+import sumolib
+from lxml import etree
+
+from .netgraph import road_edges, road_junctions
+
+#: SUMO link states of a turn from a road lane into a junction, by the rule that governs it
+APPROACH_RULES = {"O": "signalised", "o": "signalised", "G": "signalised", "g": "signalised",
+                  "r": "signalised", "y": "signalised", "M": "priority_major",
+                  "m": "yield", "s": "stop", "w": "all_way_stop", "=": "right_before_left",
+                  "Z": "zipper"}
+
+
+def rule_coverage(net: sumolib.net.Net) -> dict:
+    """Junctions by control (SUMO node type; places where at least three roads meet), turns
+    into junctions by the rule that governs them, one-way road edges, the speed limits in
+    km/h and the speed-limit changes where a road goes straight on into one of another limit."""
+    controls = Counter(node.getType() for node in road_junctions(net)
+                       if len(_neighbours(node)) >= 3)
+    approaches: Counter = Counter()
+    changes = 0
+    for edge in road_edges(net):
+        for after, connections in edge.getOutgoing().items():
+            if after.isSpecial():
+                continue
+            for connection in connections:
+                approaches[APPROACH_RULES.get(connection.getState(), "other")] += 1
+            straight = any(c.getDirection() == "s" for c in connections)
+            changes += straight and round(edge.getSpeed() * 3.6) != round(after.getSpeed() * 3.6)
+    pairs = {(e.getFromNode().getID(), e.getToNode().getID()) for e in road_edges(net)}
+    one_way = sum((b, a) not in pairs for a, b in pairs)
+    return {"junction_controls": dict(sorted(controls.items())),
+            "turns_by_rule": dict(sorted(approaches.items())),
+            "one_way_edges": one_way,
+            "speed_limits_kmh": sorted({round(e.getSpeed() * 3.6) for e in road_edges(net)}),
+            "speed_limit_changes": changes}
+
+
+#: the rule an approach edge is under when its turns are under several, most binding first
+BINDING = ("stop", "all_way_stop", "signalised", "right_before_left", "yield", "zipper",
+           "priority_major", "other")
+
+
+def approach_rules(net_path: Path) -> dict[str, str]:
+    """Each road edge that leads into a junction, by the most binding rule of its turns (read
+    from ``map.net.xml``'s connections, without loading the whole net)."""
+    turns: dict[str, set[str]] = {}
+    for _, connection in etree.iterparse(str(net_path), tag="connection"):
+        edge = connection.get("from", "")
+        if not edge.startswith(":") and connection.get("via"):
+            turns.setdefault(edge, set()).add(APPROACH_RULES.get(connection.get("state"),
+                                                                 "other"))
+        connection.clear()
+    return {edge: min(rules, key=BINDING.index) for edge, rules in sorted(turns.items())}
+
+
+def rule_waits(edgedata_path: Path, approaches: dict[str, str]) -> dict:
+    """Per rule, from SUMO's ``--edgedata-output``: the approach edges under it that traffic
+    used, the vehicles that drove them, and their waiting time per vehicle (s, standing
+    below 0.1 m/s): a rule a driver model keeps differently shows here first (a regression
+    suite compares these figures)."""
+    edges: Counter = Counter()
+    vehicles: Counter = Counter()
+    waiting: Counter = Counter()
+    for edge in etree.parse(str(edgedata_path)).iter("edge"):
+        rule = approaches.get(edge.get("id", ""))
+        used = float(edge.get("departed", 0)) + float(edge.get("entered", 0))
+        if rule and used:
+            edges[rule] += 1
+            vehicles[rule] += int(used)
+            waiting[rule] += float(edge.get("waitingTime", 0))
+    return {rule: {"approaches": edges[rule], "vehicles": vehicles[rule],
+                   "waiting_s": round(waiting[rule] / vehicles[rule], 2)}
+            for rule in sorted(vehicles)}
+
+
+def _neighbours(node) -> set[str]:
+    """The other road junctions this one has a road to or from."""
+    return ({e.getFromNode().getID() for e in node.getIncoming() if not e.isSpecial()} |
+            {e.getToNode().getID() for e in node.getOutgoing() if not e.isSpecial()}) - {
+                node.getID()}
+
+
+def rule_lines(rules: dict) -> list[str]:
+    """The coverage as two summary lines."""
+    def counts(figures: dict) -> str:
+        return ", ".join(f"{kind} x{n}" for kind, n in figures.items()) or "none"
+
+    turns = (f"turns by rule: {counts(rules['turns_by_rule'])}; one-way edges "
+             f"{rules['one_way_edges']}; speed limits {rules['speed_limits_kmh']} km/h, "
+             f"{rules['speed_limit_changes']} changes")
+    return [f"junction controls: {counts(rules['junction_controls'])}", turns]

@@ -1,0 +1,43 @@
+"""Junction control by regional rules (issue 36): what each rule set puts in the SUMO net, and
+the rule coverage report.json counts on it."""
+
+import pytest
+
+import roadweaver_sumo as rw
+from roadweaver_sumo.cli import main
+
+
+@pytest.fixture(scope="module")
+def default(tmp_path_factory):
+    spec = rw.ScenarioSpec(density=30, vehicles=150, duration=900)
+    return rw.make_scenario(spec, tmp_path_factory.mktemp("de") / "scenario")
+
+
+def test_the_default_scenario_has_four_junction_controls_and_passes(default):
+    """de rules on the main command's map: lights, yield, stop onto arterials and
+    right-before-left among residential streets; SUMO drives it without collision."""
+    assert default.report.passed
+    rules = default.report["net"]["rules"]
+    assert {"traffic_light", "priority", "priority_stop", "right_before_left"} <= set(
+        rules["junction_controls"])
+    assert "allway_stop" not in rules["junction_controls"]
+    turns = rules["turns_by_rule"]
+    assert turns["stop"] > 0 and turns["right_before_left"] > 0 and turns["signalised"] > 0
+    assert rules["speed_limits_kmh"] == [30, 40, 50] and rules["speed_limit_changes"] > 0
+
+
+def test_us_rules_make_all_way_stops_and_stop_signs(tmp_path):
+    spec = rw.ScenarioSpec(density=30, vehicles=150, duration=900, rules="us")
+    report = rw.make_scenario(spec, tmp_path / "us").report
+    assert report.passed
+    controls = report["net"]["rules"]["junction_controls"]
+    assert controls["allway_stop"] > 0 and controls["priority_stop"] > controls.get("priority", 0)
+    assert "right_before_left" not in controls
+
+
+def test_unknown_rules_are_one_line_errors(tmp_path, capsys):
+    assert main(["make-scenario", "--density", "30", "--vehicles", "10", "--rules", "fr",
+                 "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert "unknown rules 'fr'; choose one of de, us, priority" in err
+    assert err.count("\n") == 1 and not (tmp_path / "x").exists()
