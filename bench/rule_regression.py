@@ -22,9 +22,9 @@ from pathlib import Path
 
 from lxml import etree
 
+from roadweaver_sumo.spec import DEFAULT_RULES, DEFAULT_VEHICLE_MIX, STYLES
 from roadweaver_sumo.suite import SuiteSpec, check_suite, make_suite
 from roadweaver_sumo.suite.grid import parse_seeds
-from roadweaver_sumo.spec import DEFAULT_RULES, DEFAULT_VEHICLE_MIX, STYLES
 
 
 def main() -> None:
