@@ -27,7 +27,13 @@ from pathlib import Path
 from . import __version__, children
 from .cli_parser import PROG, build_parser
 from .errors import RoadweaverError
-from .spec import PRIOR_RANGES, ScenarioSpec, parse_size, parse_vehicle_mix
+from .spec import (
+    PRIOR_RANGES,
+    ScenarioSpec,
+    parse_geo_origin,
+    parse_size,
+    parse_vehicle_mix,
+)
 from .staging import remove_staged
 
 EXIT_FAILED_CHECKS = 1
@@ -117,6 +123,8 @@ def _make_scenario(args) -> int:
         rules=args.rules,
         vehicle_mix=parse_vehicle_mix(args.vehicle_mix),
         departures=args.departures,
+        fringe_factor=args.fringe_factor,
+        geo_origin=parse_geo_origin(args.geo_origin),
         duration=args.duration,
         like=like,
         ego_routes=args.ego_routes,

@@ -16,6 +16,7 @@ from .errors import RoadweaverError
 from .spec import (
     BOUNDARIES,
     DEFAULT_EGO_LENGTH_M,
+    DEFAULT_GEO_ORIGIN,
     DEFAULT_RULES,
     DEFAULT_VEHICLE_MIX,
     DEPARTURES,
@@ -23,6 +24,7 @@ from .spec import (
     MAX_DURATION_S,
     MAX_EGO_LENGTH_M,
     MAX_EGO_ROUTES,
+    MAX_FRINGE_FACTOR,
     MAX_SEED,
     MAX_SIDE_M,
     MAX_VEHICLES,
@@ -141,6 +143,12 @@ def build_parser() -> argparse.ArgumentParser:
     make.add_argument("--vehicle-mix", default=DEFAULT_MIX_TEXT, help=MIX_HELP)
     make.add_argument("--departures", default="random", metavar=_choices(DEPARTURES),
                       help=DEPARTURES_HELP)
+    make.add_argument("--fringe-factor", type=_number(float, 0.0, MAX_FRINGE_FACTOR),
+                      default=1.0, help="randomTrips' --fringe-factor: trips start and end "
+                      "this many times likelier where roads leave an open map")
+    make.add_argument("--geo-origin", default=",".join(f"{v:g}" for v in DEFAULT_GEO_ORIGIN),
+                      metavar="LAT,LON", help="WGS84 position of the map's origin (its "
+                      "south-west corner) in every format's geo-reference")
     make.add_argument("--duration", type=float, default=3600.0, help=DURATION_HELP)
     make.add_argument("--like", type=Path, metavar="FILE",
                       help="a map like this road network: an OpenStreetMap extract (.osm, "

@@ -147,7 +147,8 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
         from .scenario.sumocfg import write_sumocfg
 
         write_demand(folder, vehicles=spec.vehicles, duration=spec.duration, seed=spec.seed,
-                     vehicle_mix=spec.vehicle_mix, departures=spec.departures)
+                     vehicle_mix=spec.vehicle_mix, departures=spec.departures,
+                     fringe_factor=spec.fringe_factor)
         write_sumocfg(folder, duration=spec.duration, seed=spec.seed)
     if spec.ego_routes:
         with stage(f"{spec.ego_routes} ego routes of {spec.ego_length:g} m ...", "ego_routes"):

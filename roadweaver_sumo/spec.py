@@ -33,6 +33,7 @@ VEHICLE_CLASSES = ("passenger", "truck", "bus", "motorcycle", "bicycle", "delive
 #: collision in about one of 50 town scenarios with 5 % trucks).
 DEFAULT_VEHICLE_MIX = {"passenger": 0.95, "motorcycle": 0.05}
 LEGACY_VEHICLE_MIX = {"passenger": 1.0}
+MAX_FRINGE_FACTOR = 1000.0
 DEPARTURES = ("random", "even")  # uniform random times (randomTrips --random-depart), evenly
 LEGACY_DEPARTURES = "even"
 MAX_SIDE_M = 50_000.0
@@ -76,6 +77,9 @@ class ScenarioSpec:
     #: vehicle class -> share of the trips; departure times random or evenly spread
     vehicle_mix: dict = field(default_factory=lambda: dict(DEFAULT_VEHICLE_MIX))
     departures: str = "random"
+    #: randomTrips' --fringe-factor: how much likelier trips start and end where roads leave
+    #: the map (1: as likely as anywhere else of the same length)
+    fringe_factor: float = 1.0
     geo_origin: tuple[float, float] = DEFAULT_GEO_ORIGIN
     version: str = field(default=__version__)
     #: structural priors of the learned model's condition, None: the style's (or the city's)
@@ -121,6 +125,11 @@ class ScenarioSpec:
         if self.departures not in DEPARTURES:
             raise RoadweaverError(f"unknown departures {self.departures!r}; choose one of "
                                   f"{', '.join(DEPARTURES)}")
+        _check_number("--fringe-factor", self.fringe_factor)
+        if not 0 <= self.fringe_factor <= MAX_FRINGE_FACTOR:
+            raise RoadweaverError(f"--fringe-factor must be 0..{MAX_FRINGE_FACTOR:g}, got "
+                                  f"{self.fringe_factor:g}")
+        _check_geo_origin(self.geo_origin)
         _check_seed("--seed", self.seed)
         for name, (low, high) in PRIOR_RANGES.items():
             value = getattr(self, name)
@@ -214,6 +223,8 @@ class ScenarioSpec:
             del data["vehicle_mix"]
         if data["departures"] == LEGACY_DEPARTURES:
             del data["departures"]
+        if data["fringe_factor"] == 1.0:  # randomTrips' default, as before there was a choice
+            del data["fringe_factor"]
         for name in (*PRIOR_RANGES, "like"):  # unset: left out, as in specs written before
             if data[name] is None:
                 del data[name]
@@ -238,6 +249,27 @@ class ScenarioSpec:
                 "vehicle_mix": LEGACY_VEHICLE_MIX, "departures": LEGACY_DEPARTURES, **data}
         data["geo_origin"] = tuple(data.get("geo_origin", DEFAULT_GEO_ORIGIN))
         return cls(**{k: v for k, v in data.items() if k in cls.__dataclass_fields__})
+
+
+def parse_geo_origin(text: str) -> tuple[float, float]:
+    """``"48.137,11.575"`` -> (48.137, 11.575): latitude, longitude in degrees."""
+    try:
+        lat, lon = (float(v) for v in str(text).split(","))
+    except ValueError:
+        raise RoadweaverError(f"--geo-origin {text!r} is not LAT,LON in degrees, e.g. "
+                              "52.52,13.405") from None
+    return lat, lon
+
+
+def _check_geo_origin(origin) -> None:
+    if not isinstance(origin, (tuple, list)) or len(origin) != 2:
+        raise RoadweaverError(f"--geo-origin must be (latitude, longitude), got {origin!r}")
+    lat, lon = origin
+    for name, value, limit in (("latitude", lat, 85.0), ("longitude", lon, 180.0)):
+        _check_number(f"--geo-origin {name}", value)
+        if not -limit <= value <= limit:
+            raise RoadweaverError(f"--geo-origin: {name} {value:g} is outside "
+                                  f"-{limit:g}..{limit:g} degrees")
 
 
 def parse_vehicle_mix(text: str) -> dict[str, float]:

@@ -41,3 +41,38 @@ def test_unknown_rules_are_one_line_errors(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "unknown rules 'fr'; choose one of de, us, priority" in err
     assert err.count("\n") == 1 and not (tmp_path / "x").exists()
+
+
+def test_fringe_factor_sends_through_traffic_across_the_map_and_geo_origin_places_it(tmp_path):
+    """--fringe-factor 10 (randomTrips', on the border dead ends marked fringe="outer"):
+    most trips start where a road leaves the map; --geo-origin moves every format's
+    geo-reference; both are in spec.json."""
+    import json
+
+    import sumolib
+    from lxml import etree
+
+    folder = tmp_path / "through"
+    assert main(["make-scenario", "--density", "30", "--vehicles", "200", "--duration", "900",
+                 "--fringe-factor", "10", "--geo-origin", "52.52,13.405", "--no-validate",
+                 "--out", str(folder)]) == 0
+    net = sumolib.net.readNet(str(folder / "map.net.xml"))
+    outer = {n.getID() for n in net.getNodes() if n.getFringe() == "outer"}
+    assert outer and all(min(x, y, 2000 - x, 2000 - y) < 1.0 for x, y in
+                         (net.getNode(n).getCoord()[:2] for n in outer))  # on the border
+    starts = [v.find("route").get("edges").split()[0]
+              for v in etree.parse(str(folder / "demand.rou.xml")).getroot().iter("vehicle")]
+    share = sum(net.getEdge(e).getFromNode().getID() in outer for e in starts) / len(starts)
+    assert share > 0.6
+    spec = json.loads((folder / "spec.json").read_text())
+    assert spec["fringe_factor"] == 10.0 and spec["geo_origin"] == [52.52, 13.405]
+    assert "+lat_0=52.52 +lon_0=13.405" in (folder / "map.net.xml").read_text()
+    bounds = etree.parse(str(folder / "lanelet2_map.osm")).getroot().find("bounds")
+    assert abs(float(bounds.get("minlat")) - 52.52) < 0.01
+
+
+def test_bad_geo_origin_is_a_one_line_error(tmp_path, capsys):
+    assert main(["make-scenario", "--density", "30", "--vehicles", "10", "--geo-origin",
+                 "95,10", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert "--geo-origin: latitude 95 is outside -85..85 degrees" in err and err.count("\n") == 1

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 from collections import Counter
+from itertools import pairwise
 from pathlib import Path
 
 import pytest
@@ -65,7 +66,7 @@ def test_demand_mixes_sumo_vehicle_classes_departing_at_random_times(tmp_path, g
     for name, share in mix.items():  # binomial: within 4 standard deviations
         assert abs(kinds[name] - 200 * share) < 4 * (200 * share * (1 - share)) ** 0.5
     departs = [float(v.get("depart")) for v in root.iter("vehicle")]
-    gaps = [b - a for a, b in zip(departs, departs[1:])]
+    gaps = [b - a for a, b in pairwise(departs)]
     assert departs == sorted(departs) and 0 <= departs[0] and departs[-1] < 600.0
     assert max(gaps) > 3 * min(gaps) + 1.0  # uneven, as arrivals are
 

@@ -64,15 +64,23 @@ def _add_location(root: etree._Element, hd: HDMap) -> None:
     })
 
 
+BORDER_M = 1.0  # a dead end this close to the map border is where a road left the map
+
+
 def plain_nodes(hd: HDMap) -> etree._Element:
-    """``<nodes>``: one node per junction with its control type."""
+    """``<nodes>``: one node per junction with its control type. A dead end on the map border
+    (a road that ran on into the town the map was cut from) is marked ``fringe="outer"``, so
+    that randomTrips' ``--fringe-junctions`` sends through traffic in and out there, and not
+    at the cul-de-sacs inside."""
     root = _root("nodes", "nodes_file.xsd")
     if hd.geo_origin is not None:
         _add_location(root, hd)
     for jid in sorted(hd.junctions):
         j = hd.junctions[jid]
-        etree.SubElement(root, "node", id=node_id(jid), x=_num(j.xy[0]), y=_num(j.xy[1]),
-                         type=j.type)
+        x, y = j.xy
+        outer = j.type == "dead_end" and min(x, y, hd.width - x, hd.height - y) < BORDER_M
+        etree.SubElement(root, "node", id=node_id(jid), x=_num(x), y=_num(y), type=j.type,
+                         **({"fringe": "outer"} if outer else {}))
     return root
 
 

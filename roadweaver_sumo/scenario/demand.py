@@ -19,7 +19,8 @@ Sampling choices (all passed to randomTrips):
   the road surface instead of favouring short junction-dense edges;
 * ``--min-distance``: origin and destination at least a fifth of the map diagonal apart (at most
   1 km), so trips cross a few junctions instead of hopping one block;
-* no ``--fringe-factor``: a generated map is a whole town, not a cut-out with through traffic;
+* ``--fringe-factor`` (1 unless asked): through traffic enters and leaves where roads run off
+  an open map (nodes marked ``fringe="outer"``, ``--fringe-junctions``);
 * ``departLane="best" departSpeed="max"``: cars enter on a lane that leads along their route, as
   drivers do, instead of all on the rightmost lane (which causes needless lane-change jams).
 
@@ -67,12 +68,14 @@ TRIP_ATTRIBUTES = 'departLane="best" departSpeed="max"'
 def write_demand(
     out_dir: Path, *, vehicles: int, duration: float, seed: int, net_file: str = "map.net.xml",
     vehicle_mix: dict[str, float] | None = None, departures: str = "random",
+    fringe_factor: float = 1.0,
 ) -> Path:
     """Write ``out_dir/demand.rou.xml`` with exactly ``vehicles`` routed trips departing in
     [0, duration), of the SUMO vehicle classes of ``vehicle_mix`` (class -> share; default
     :data:`~roadweaver_sumo.spec.DEFAULT_VEHICLE_MIX`) at random or evenly spread times
-    (``departures``); raise RoadweaverError when the net cannot provide that many routable
-    trips."""
+    (``departures``), trips starting and ending where roads leave the map ``fringe_factor``
+    times likelier (randomTrips' ``--fringe-factor`` on the nodes marked ``fringe="outer"``);
+    raise RoadweaverError when the net cannot provide that many routable trips."""
     out_dir = Path(out_dir)
     if vehicles < 1 or duration <= 0:
         raise RoadweaverError(
@@ -83,7 +86,8 @@ def write_demand(
     min_distance = _min_distance(out_dir / net_file)
     temporary = [_SAMPLE_TRIPS, _ROUTED_TRIPS, _SAMPLE_ROUTES]
     with _removed_afterwards(out_dir, temporary):
-        routes = _sample_routes(out_dir, net_file, vehicles, duration, seed, min_distance)
+        routes = _sample_routes(out_dir, net_file, vehicles, duration, seed, min_distance,
+                                fringe_factor)
     mix = DEFAULT_VEHICLE_MIX if vehicle_mix is None else vehicle_mix
     _assign(routes, duration, np.random.default_rng([seed, STAGE_DEMAND]), mix, departures)
     return write_xml(routes, out_dir / DEMAND_FILE)
@@ -99,13 +103,14 @@ def _wanted(vehicles: int, attempt: int) -> int:
 
 def _sample_routes(
     out_dir: Path, net_file: str, vehicles: int, duration: float, seed: int, min_distance: float,
+    fringe_factor: float = 1.0,
 ) -> etree._Element:
     """duarouter's ``<routes>`` cut down to its first ``vehicles`` routed cars between distinct
     edges, asking randomTrips for more (same seed, larger oversupply) until there are enough."""
     found = 0
     for attempt in range(MAX_ATTEMPTS):
         _random_trips(out_dir, net_file, _wanted(vehicles, attempt), duration, seed,
-                      min_distance)
+                      min_distance, fringe_factor)
         first = math.ceil(vehicles * ROUTE_FIRST_SHARE) + ROUTE_FIRST_EXTRA
         for trips in (first, None):
             root, routed, all_routed = _routed(out_dir, net_file, seed, trips)
@@ -146,7 +151,7 @@ def _distinct_ends(vehicle: etree._Element) -> bool:
 
 def _random_trips(
     out_dir: Path, net_file: str, count: int, duration: float, seed: int, min_distance: float,
-    out: str = _SAMPLE_TRIPS,
+    fringe_factor: float = 1.0, out: str = _SAMPLE_TRIPS,
 ) -> None:
     """Run randomTrips.py (seeded, unvalidated: duarouter validates next) for ~``count`` trips."""
     args = [
@@ -158,6 +163,8 @@ def _random_trips(
         "--vehicle-class", VEHICLE_CLASS, "--edge-permission", VEHICLE_CLASS,
         "--trip-attributes", TRIP_ATTRIBUTES,
     ]  # fmt: skip
+    if fringe_factor != 1.0:
+        args += ["--fringe-factor", repr(float(fringe_factor)), "--fringe-junctions"]
     run(args, out_dir, "randomTrips.py")
     if not (out_dir / out).exists():
         raise RoadweaverError("demand: randomTrips.py wrote no trips; does the net allow cars?")
