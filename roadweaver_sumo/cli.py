@@ -113,7 +113,8 @@ def _make_scenario(args) -> int:
         log(f"like {args.like}: {like['density']:g} road nodes/km² ({where})")
     spec = ScenarioSpec(
         density=args.density if args.density is not None else like["density"],
-        vehicles=args.vehicles,
+        vehicles=args.vehicles if args.vehicles is not None else
+        max(1, round(args.insertion_rate * args.duration / 3600.0)),
         width=width,
         height=height,
         seed=args.seed,

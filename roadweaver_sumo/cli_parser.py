@@ -129,7 +129,11 @@ def build_parser() -> argparse.ArgumentParser:
                       help=f"road nodes per km², > 0 and <= {MAX_DENSITY:g}; the map must hold "
                            f"at least {MIN_ROAD_NODES} road nodes (required unless --like gives "
                            "the city's)")
-    make.add_argument("--vehicles", type=int, required=True, help=VEHICLES_HELP)
+    vehicles = make.add_mutually_exclusive_group(required=True)
+    vehicles.add_argument("--vehicles", type=int, help=VEHICLES_HELP)
+    vehicles.add_argument("--insertion-rate", type=_number(float, 0.0, MAX_VEHICLES, above=True),
+                          metavar="PER_HOUR", help="vehicles per hour, as randomTrips' "
+                          "--insertion-rate: --vehicles is this rate over --duration")
     make.add_argument("--size", default="2000", help=SIZE_HELP)
     make.add_argument("--seed", type=int, default=0,
                       help=f"{SEED_HELP} (SUMO's tools take 32-bit seeds)")

@@ -76,3 +76,18 @@ def test_bad_geo_origin_is_a_one_line_error(tmp_path, capsys):
                  "95,10", "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err
     assert "--geo-origin: latitude 95 is outside -85..85 degrees" in err and err.count("\n") == 1
+
+
+def test_insertion_rate_gives_the_vehicles_over_the_duration(tmp_path, capsys):
+    """--insertion-rate (randomTrips' vehicles per hour) instead of --vehicles; not both."""
+    import json
+
+    folder = tmp_path / "rate"
+    assert main(["make-scenario", "--density", "30", "--insertion-rate", "300", "--duration",
+                 "600", "--no-validate", "--out", str(folder)]) == 0
+    assert json.loads((folder / "spec.json").read_text())["vehicles"] == 50
+    assert (folder / "demand.rou.xml").read_text().count("<vehicle ") == 50
+    capsys.readouterr()
+    assert main(["make-scenario", "--density", "30", "--vehicles", "10", "--insertion-rate",
+                 "300", "--out", str(tmp_path / "both")]) == 2
+    assert "not allowed with argument --vehicles" in capsys.readouterr().err
