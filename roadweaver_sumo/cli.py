@@ -1,5 +1,6 @@
 """Command line: ``roadweaver-sumo make-scenario``, ``validate``, ``evaluate``, ``data prepare``,
-``train``, ``make-suite``, ``check-suite`` and ``render``.
+``train``, ``make-suite``, ``check-suite`` and ``render``; ``drive`` and ``drive-suite`` are in
+``cli_drive``.
 
 Every argument is checked before any work starts, and ``--help`` states its range and default
 (``cli_parser``).
@@ -25,7 +26,8 @@ import warnings
 from pathlib import Path
 
 from . import __version__, children
-from .cli_parser import PROG, build_parser
+from .cli_drive import drive_command, drive_suite_command
+from .cli_parser import EXIT_BAD_INPUT, EXIT_FAILED_CHECKS, EXIT_INTERNAL_ERROR, PROG, build_parser
 from .errors import RoadweaverError
 from .spec import (
     PRIOR_RANGES,
@@ -35,10 +37,6 @@ from .spec import (
     parse_vehicle_mix,
 )
 from .staging import remove_staged
-
-EXIT_FAILED_CHECKS = 1
-EXIT_BAD_INPUT = 2
-EXIT_INTERNAL_ERROR = 3
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
@@ -75,8 +73,8 @@ def _stopped(signum: int) -> None:
 def _run(args) -> int:
     commands = {"make-scenario": _make_scenario, "evaluate": _evaluate, "train": _train,
                 "data": _data_prepare, "make-suite": _make_suite, "check-suite": _check_suite,
-                "render": _render, "validate": _validate, "drive": _drive,
-                "drive-suite": _drive_suite}  # fmt: skip
+                "render": _render, "validate": _validate, "drive": drive_command,
+                "drive-suite": drive_suite_command}  # fmt: skip
     return commands[args.command](args)
 
 
@@ -163,62 +161,6 @@ def _evaluate(args) -> int:
         print(json.dumps(result, indent=2, sort_keys=True))
     else:
         print("\n".join(summary_lines(result)))
-    return 0
-
-
-def _drive(args) -> int:
-    from .closed_loop import run
-
-    if not (args.dir / "scenario.sumocfg").is_file():
-        raise RoadweaverError(f"{args.dir} is not a scenario folder (no scenario.sumocfg)")
-    controller = args.controller or (None if args.remote_port else "sumo")
-    report = run(args.dir, controller, route=args.route, remote_port=args.remote_port)
-    out = args.out or args.dir / f"drive_report_{args.route}.json"
-    out.write_text(json.dumps(report, indent=2, sort_keys=True) + "\n", encoding="utf-8")
-    if args.json:
-        print(json.dumps(report, indent=2, sort_keys=True))
-        return 0
-    kinds = ", ".join(f"{k} x{n}" for k, n in report["infraction_counts"].items()) or "none"
-    print(f"{report['route']} ({report['route_length_m']:g} m), controller "
-          f"{report['controller']}: score {report['score']:.3f} = completion "
-          f"{report['route_completion']:.3f} x penalty {report['penalty']:.3f}; infractions: "
-          f"{kinds}; wrote {out}")
-    return 0
-
-
-def _drive_suite(args) -> int:
-    from .closed_loop.suite_drive import (
-        SCORES_FILE,
-        compare_scores,
-        drive_suite,
-        read_scores,
-        table_lines,
-    )
-    from .suite import Progress, read_manifest
-
-    suite, manifest = read_manifest(args.dir)  # a broken suite fails before any driving
-    out = args.out or args.dir / SCORES_FILE
-    if out.exists() and not args.force:
-        raise RoadweaverError(f"{out} exists; use --force to replace it, or --out")
-    baseline = read_scores(args.baseline) if args.baseline else None
-    progress = Progress(len(manifest["scenarios"]) * suite.ego_routes, enabled=not args.json)
-    table = drive_suite(args.dir, args.controller, progress=progress)
-    out.write_text(json.dumps(table, indent=2, sort_keys=True) + "\n", encoding="utf-8")
-    changes, regressed = compare_scores(baseline, table) if baseline else ([], False)
-    if args.json:
-        print(json.dumps(table | {"changes": changes, "regressed": regressed}, indent=2,
-                         sort_keys=True))
-    else:
-        print("\n".join(table_lines(table)))
-        if baseline:
-            print(f"against {args.baseline}: {len(changes)} routes changed")
-            for line in changes:
-                print(f"  {line}")
-        print(f"wrote {out}")
-    if regressed:
-        print(f"{PROG}: error: a route scores lower or has a new infraction kind than in "
-              f"{args.baseline}", file=sys.stderr)
-        return EXIT_FAILED_CHECKS
     return 0
 
 

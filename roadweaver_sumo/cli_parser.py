@@ -40,6 +40,7 @@ from .spec import (
 )
 
 PROG = "roadweaver-sumo"
+EXIT_FAILED_CHECKS, EXIT_BAD_INPUT, EXIT_INTERNAL_ERROR = 1, 2, 3  # see cli's docstring
 RULES_HELP = ("regional traffic rules that choose each junction's control: de (right-before-left "
               "in residential streets, stop signs onto arterials), us (all-way stops, stop "
               "signs), priority (yield at every junction without a light)")
