@@ -226,6 +226,7 @@ def _make_suite(args) -> int:
                       vehicles=args.vehicles, duration=args.duration, skeleton=args.skeleton,
                       boundary=args.boundary, rules=args.rules,
                       vehicle_mix=parse_vehicle_mix(args.vehicle_mix), departures=args.departures,
+                      fringe_factor=args.fringe_factor,
                       ego_routes=args.ego_routes,
                       ego_length=args.ego_length)  # fmt: skip
     total = len(suite.scenarios())

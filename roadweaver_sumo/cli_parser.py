@@ -47,6 +47,8 @@ RULES_HELP = ("regional traffic rules that choose each junction's control: de (r
 MIX_HELP = ("vehicle classes and their shares of the trips, SUMO's classes with SUMO's default "
             "types: passenger, truck, bus, motorcycle, bicycle, delivery")
 DEFAULT_MIX_TEXT = ",".join(f"{k}:{v:g}" for k, v in DEFAULT_VEHICLE_MIX.items())
+FRINGE_HELP = ("randomTrips' --fringe-factor: trips start and end this many times likelier where "
+               "roads leave an open map")
 DEPARTURES_HELP = "random: uniform random departure times (randomTrips --random-depart); even"
 BOUNDARY_HELP = ("open: roads run off the map edge, as in a map cut out of a town; ring: a ring "
                  "road just inside the border closes the map")
@@ -149,8 +151,7 @@ def build_parser() -> argparse.ArgumentParser:
     make.add_argument("--departures", default="random", metavar=_choices(DEPARTURES),
                       help=DEPARTURES_HELP)
     make.add_argument("--fringe-factor", type=_number(float, 0.0, MAX_FRINGE_FACTOR),
-                      default=1.0, help="randomTrips' --fringe-factor: trips start and end "
-                      "this many times likelier where roads leave an open map")
+                      default=1.0, help=FRINGE_HELP)
     make.add_argument("--geo-origin", default=",".join(f"{v:g}" for v in DEFAULT_GEO_ORIGIN),
                       metavar="LAT,LON", help="WGS84 position of the map's origin (its "
                       "south-west corner) in every format's geo-reference")
@@ -243,6 +244,8 @@ def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:
     suite.add_argument("--vehicle-mix", default=DEFAULT_MIX_TEXT, help=MIX_HELP)
     suite.add_argument("--departures", default="random", metavar=_choices(DEPARTURES),
                        help=DEPARTURES_HELP)
+    suite.add_argument("--fringe-factor", type=_number(float, 0.0, MAX_FRINGE_FACTOR),
+                       default=1.0, help=FRINGE_HELP)
     suite.add_argument("--ego-routes", type=_number(int, 0, MAX_EGO_ROUTES), default=0,
                        help="ego routes per scenario, for 'drive-suite'")
     suite.add_argument("--ego-length", type=_number(float, MIN_EGO_LENGTH_M, MAX_EGO_LENGTH_M),

@@ -119,3 +119,32 @@ def test_legacy_choices_reach_the_scenarios(tmp_path):
     nodes = (out / NAMES[0] / "plain" / "map.nod.xml").read_text()
     assert 'type="priority"' in nodes
     assert not re.search(r'type="(right_before_left|priority_stop|allway_stop)"', nodes)
+
+
+def test_demand_choices_reach_the_manifest_and_the_scenarios(tmp_path):
+    """Vehicle mix, departures and fringe factor are suite fields: in the manifest's suite,
+    in every scenario's spec.json and demand."""
+    out = tmp_path / "demand"
+    assert main(["make-suite", "--densities", "20", "--styles", "grid", "--seeds", "0",
+                 "--size", "1000", "--vehicles", "15", "--duration", "60", "--skeleton",
+                 "procedural", "--vehicle-mix", "passenger:0.5,truck:0.5", "--departures",
+                 "even", "--fringe-factor", "5", "--quiet", "--out", str(out)]) == 0
+    suite = json.loads((out / MANIFEST_FILE).read_text())["suite"]
+    assert (suite["vehicle_mix"], suite["fringe_factor"]) == ({"passenger": 0.5, "truck": 0.5},
+                                                              5.0)
+    assert "departures" not in suite  # even: the earlier versions' value, left unsaid
+    name = "grid-d20-1000x1000-s0-v15"
+    spec = json.loads((out / name / "spec.json").read_text())
+    assert spec["fringe_factor"] == 5.0 and spec["vehicle_mix"]["truck"] == 0.5
+    assert 'vClass="truck"' in (out / name / "demand.rou.xml").read_text()
+
+
+def test_a_map_too_small_for_a_fringe_factor_is_a_one_line_error(tmp_path, capsys):
+    """500 m with every road reaching the border: randomTrips finds no trip; the error names
+    the option and what to do."""
+    assert main(["make-scenario", "--density", "20", "--size", "500", "--vehicles", "15",
+                 "--duration", "60", "--skeleton", "procedural", "--style", "grid",
+                 "--fringe-factor", "5", "--out", str(tmp_path / "x")]) == 2
+    last = capsys.readouterr().err.splitlines()[-1]
+    assert last.startswith("roadweaver-sumo: error: --fringe-factor 5: randomTrips found no trip")
+    assert last.endswith("(use 1)") and "--allow-fringe" not in last

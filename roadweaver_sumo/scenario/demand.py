@@ -165,7 +165,14 @@ def _random_trips(
     ]  # fmt: skip
     if fringe_factor != 1.0:
         args += ["--fringe-factor", repr(float(fringe_factor)), "--fringe-junctions"]
-    run(args, out_dir, "randomTrips.py")
+    try:
+        run(args, out_dir, "randomTrips.py")
+    except RoadweaverError as exc:
+        if fringe_factor == 1.0:
+            raise
+        raise RoadweaverError(f"--fringe-factor {fringe_factor:g}: randomTrips found no trip "
+                              "between the map's border roads and the rest of it; the map has "
+                              "too few roads away from its border for it (use 1)") from exc
     if not (out_dir / out).exists():
         raise RoadweaverError("demand: randomTrips.py wrote no trips; does the net allow cars?")
 

@@ -38,6 +38,7 @@ class SuiteSpec:
     rules: str = LEGACY_RULES
     vehicle_mix: dict = field(default_factory=lambda: dict(LEGACY_VEHICLE_MIX))
     departures: str = LEGACY_DEPARTURES
+    fringe_factor: float = 1.0
     ego_routes: int = 0
     ego_length: float = 5000.0
 
@@ -65,18 +66,19 @@ class SuiteSpec:
                          seed=s, style=style, skeleton=self.skeleton, duration=self.duration,
                          boundary=self.boundary, rules=self.rules,
                          vehicle_mix=dict(self.vehicle_mix), departures=self.departures,
+                         fringe_factor=self.fringe_factor,
                          ego_routes=self.ego_routes,
                          ego_length=self.ego_length)
             for d in self.densities for style in self.styles for s in self.seeds
         ]  # fmt: skip
 
     def to_dict(self) -> dict:
-        """The fields, lists for tuples; rules, vehicle mix and departures only when not the
-        values of earlier versions, the ego route fields only when the suite has some, so that
+        """The fields, lists for tuples; rules, vehicle mix, departures and fringe factor only
+        when not the values of earlier versions, the ego route fields only when the suite has some, so that
         manifests of suites without them read as before."""
         data = asdict(self)
         for name, legacy in (("rules", LEGACY_RULES), ("vehicle_mix", LEGACY_VEHICLE_MIX),
-                             ("departures", LEGACY_DEPARTURES)):
+                             ("departures", LEGACY_DEPARTURES), ("fringe_factor", 1.0)):
             if data[name] == legacy:
                 del data[name]
         if not self.ego_routes:
@@ -112,7 +114,7 @@ def _normalise(suite: SuiteSpec) -> None:
         is_number = isinstance(value, (int, float)) and not isinstance(value, bool)
         return float(value) if is_number else value  # anything else: ScenarioSpec says why
 
-    for name in ("width", "height", "duration", "ego_length"):
+    for name in ("width", "height", "duration", "ego_length", "fringe_factor"):
         object.__setattr__(suite, name, as_float(getattr(suite, name)))
     if isinstance(suite.densities, tuple):
         object.__setattr__(suite, "densities", tuple(as_float(d) for d in suite.densities))
