@@ -32,6 +32,10 @@ LANE_COLOUR = "#c4c4c4"
 JUNCTION_COLOUR = "#dcdcdc"
 TLS_COLOUR = "#1565c0"
 DEAD_END_COLOUR = "#6a1b9a"
+STOP_COLOUR = "#c62828"
+RIGHT_BEFORE_LEFT_COLOUR = "#ef6c00"
+LEGEND_COLUMNS = 4
+OPTIONAL_MARKERS = ("stop sign", "right before left", "collision site")
 COLLISION_COLOUR = "#00c853"  # stands out against the flow colours
 FLOW_CMAP = "inferno_r"
 FLOW_CMAP_RANGE = (0.12, 0.95)  # skip the near-white and near-black ends of the colour map
@@ -113,20 +117,25 @@ def _draw_network(ax, net: dict, report: dict, pt_per_m: float, fig) -> None:
     handles += _draw_lanes(ax, net, sim.get("edge_flows") or {}, pt_per_m, fig)
     size = float(np.clip(9 * pt_per_m, 4.5, 9))
     sites = _collision_xy(net, sim.get("collision_sites") or [])
+    stops = [xy for kind in ("priority_stop", "allway_stop")
+             if (xy := net["nodes"].get(kind)) is not None]
     for xy, colour, marker, label in (
         (net["nodes"].get("traffic_light"), TLS_COLOUR, "o", "traffic light"),
+        (np.vstack(stops) if stops else None, STOP_COLOUR, "8", "stop sign"),
+        (net["nodes"].get("right_before_left"), RIGHT_BEFORE_LEFT_COLOUR, "^",
+         "right before left"),
         (net["nodes"].get("dead_end"), DEAD_END_COLOUR, "X", "dead end"),
         (sites, COLLISION_COLOUR, "*", "collision site"),
     ):
         xy = np.empty((0, 2)) if xy is None else xy
-        if label == "collision site" and not len(xy):
+        if label in OPTIONAL_MARKERS and not len(xy):
             continue  # only worth a legend entry when there is one
         big = 1.6 if label == "collision site" else 1.0
         ax.plot(xy[:, 0], xy[:, 1], ls="none", marker=marker, ms=size * big, mfc=colour,
                 mec="white", mew=0.8, zorder=4)  # fmt: skip
         handles.append(mpl.Line2D([], [], ls="none", marker=marker, ms=7 * big, mfc=colour,
                               mec="white", label=f"{label} ({len(xy)})"))  # fmt: skip
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=len(handles),
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=min(len(handles), LEGEND_COLUMNS),
               fontsize=8, frameon=False, handlelength=1.6)  # fmt: skip
 
 
