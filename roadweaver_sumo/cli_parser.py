@@ -145,13 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help="how the arterial roads are made")
     make.add_argument("--boundary", default="open", metavar=_choices(BOUNDARIES),
                       help=BOUNDARY_HELP)
-    make.add_argument("--rules", default=DEFAULT_RULES, metavar=_choices(RULES),
-                      help=RULES_HELP)
-    make.add_argument("--vehicle-mix", default=DEFAULT_MIX_TEXT, help=MIX_HELP)
-    make.add_argument("--departures", default="random", metavar=_choices(DEPARTURES),
-                      help=DEPARTURES_HELP)
-    make.add_argument("--fringe-factor", type=_number(float, 0.0, MAX_FRINGE_FACTOR),
-                      default=1.0, help=FRINGE_HELP)
+    _add_rule_and_demand_options(make)
     make.add_argument("--geo-origin", default=",".join(f"{v:g}" for v in DEFAULT_GEO_ORIGIN),
                       metavar="LAT,LON", help="WGS84 position of the map's origin (its "
                       "south-west corner) in every format's geo-reference")
@@ -222,6 +216,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _add_rule_and_demand_options(parser: argparse.ArgumentParser) -> None:
+    """``--rules``, ``--vehicle-mix``, ``--departures`` and ``--fringe-factor``: the same for
+    a scenario and for every scenario of a suite."""
+    parser.add_argument("--rules", default=DEFAULT_RULES, metavar=_choices(RULES),
+                        help=RULES_HELP)
+    parser.add_argument("--vehicle-mix", default=DEFAULT_MIX_TEXT, help=MIX_HELP)
+    parser.add_argument("--departures", default="random", metavar=_choices(DEPARTURES),
+                        help=DEPARTURES_HELP)
+    parser.add_argument("--fringe-factor", type=_number(float, 0.0, MAX_FRINGE_FACTOR),
+                        default=1.0, help=FRINGE_HELP)
+
+
 def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:
     """``make-suite``, ``check-suite`` and ``render`` (scenario suites and previews)."""
     suite = sub.add_parser("make-suite", help="build a grid of scenarios with a manifest")
@@ -239,13 +245,7 @@ def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:
                        help="how the arterial roads are made")  # same default as make-scenario
     suite.add_argument("--boundary", default=make.get_default("boundary"),
                        metavar=_choices(BOUNDARIES), help=BOUNDARY_HELP)
-    suite.add_argument("--rules", default=DEFAULT_RULES, metavar=_choices(RULES),
-                       help=RULES_HELP)
-    suite.add_argument("--vehicle-mix", default=DEFAULT_MIX_TEXT, help=MIX_HELP)
-    suite.add_argument("--departures", default="random", metavar=_choices(DEPARTURES),
-                       help=DEPARTURES_HELP)
-    suite.add_argument("--fringe-factor", type=_number(float, 0.0, MAX_FRINGE_FACTOR),
-                       default=1.0, help=FRINGE_HELP)
+    _add_rule_and_demand_options(suite)
     suite.add_argument("--ego-routes", type=_number(int, 0, MAX_EGO_ROUTES), default=0,
                        help="ego routes per scenario, for 'drive-suite'")
     suite.add_argument("--ego-length", type=_number(float, MIN_EGO_LENGTH_M, MAX_EGO_LENGTH_M),

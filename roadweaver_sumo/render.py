@@ -135,7 +135,8 @@ def _draw_network(ax, net: dict, report: dict, pt_per_m: float, fig) -> None:
                 mec="white", mew=0.8, zorder=4)  # fmt: skip
         handles.append(mpl.Line2D([], [], ls="none", marker=marker, ms=7 * big, mfc=colour,
                               mec="white", label=f"{label} ({len(xy)})"))  # fmt: skip
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=min(len(handles), LEGEND_COLUMNS),
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01),
+              ncol=min(len(handles), LEGEND_COLUMNS),
               fontsize=8, frameon=False, handlelength=1.6)  # fmt: skip
 
 

@@ -36,6 +36,12 @@ LEGACY_VEHICLE_MIX = {"passenger": 1.0}
 MAX_FRINGE_FACTOR = 1000.0
 DEPARTURES = ("random", "even")  # uniform random times (randomTrips --random-depart), evenly
 LEGACY_DEPARTURES = "even"
+#: Choices added after the first suites were kept, at the values every spec had before them:
+#: spec.json and manifests leave these values unsaid, and reading supplies them, so that a
+#: suite built then rebuilds to the same bytes.
+UNSAID = {"rules": LEGACY_RULES, "vehicle_mix": LEGACY_VEHICLE_MIX,
+          "departures": LEGACY_DEPARTURES, "fringe_factor": 1.0}
+LEGACY = {"boundary": LEGACY_BOUNDARY, **UNSAID}  # spec.json leaves the ring unsaid too
 MAX_SIDE_M = 50_000.0
 MIN_SIDE_M = 200.0
 MAX_VEHICLES = 1_000_000
@@ -209,22 +215,12 @@ class ScenarioSpec:
         return np.random.default_rng([self.seed, stage])
 
     def to_json(self) -> str:
-        """The spec as ``spec.json`` writes it. A ring boundary, priority rules, cars only and
-        even departures, which every spec had before there was a choice, are left unsaid, so
-        that a suite built then rebuilds to the same bytes (reading supplies them: the
-        ``LEGACY_*`` values)."""
+        """The spec as ``spec.json`` writes it: the :data:`LEGACY` values left unsaid."""
         data = asdict(self)
         data["geo_origin"] = list(self.geo_origin)
-        if data["boundary"] == LEGACY_BOUNDARY:
-            del data["boundary"]
-        if data["rules"] == LEGACY_RULES:
-            del data["rules"]
-        if data["vehicle_mix"] == LEGACY_VEHICLE_MIX:
-            del data["vehicle_mix"]
-        if data["departures"] == LEGACY_DEPARTURES:
-            del data["departures"]
-        if data["fringe_factor"] == 1.0:  # randomTrips' default, as before there was a choice
-            del data["fringe_factor"]
+        for name, value in LEGACY.items():
+            if data[name] == value:
+                del data[name]
         for name in (*PRIOR_RANGES, "like"):  # unset: left out, as in specs written before
             if data[name] is None:
                 del data[name]
@@ -245,8 +241,7 @@ class ScenarioSpec:
         """The spec of a parsed ``spec.json`` or manifest entry: fields this version does not
         know are ignored, a missing boundary, rule set, vehicle mix or departure choice is the
         value every spec had before the choice."""
-        data = {"boundary": LEGACY_BOUNDARY, "rules": LEGACY_RULES,
-                "vehicle_mix": LEGACY_VEHICLE_MIX, "departures": LEGACY_DEPARTURES, **data}
+        data = {**LEGACY, **data}
         data["geo_origin"] = tuple(data.get("geo_origin", DEFAULT_GEO_ORIGIN))
         return cls(**{k: v for k, v in data.items() if k in cls.__dataclass_fields__})
 

@@ -226,9 +226,9 @@ def near_misses(ssm_file: Path) -> dict:
     conflicts = []
     if ssm_file.exists():
         for conflict in etree.parse(str(ssm_file)).getroot().iter("conflict"):
-            least = {tag: float(conflict.find(tag).get("value")) for tag in ("minTTC", "PET")
-                     if conflict.find(tag) is not None and conflict.find(tag).get("value")
-                     not in (None, "NA")}
+            found = {tag: conflict.find(tag) for tag in ("minTTC", "PET")}
+            least = {tag: float(e.get("value")) for tag, e in found.items()
+                     if e is not None and e.get("value") not in (None, "NA")}
             if least:
                 conflicts.append({"time": float(conflict.get("begin")),
                                   "other": conflict.get("foe"), **least})

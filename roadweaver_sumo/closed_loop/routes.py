@@ -156,10 +156,9 @@ def _edge_graph(net) -> nx.DiGraph:
     """Edges that cars may drive as nodes, a link for each turn but U-turns, weighted by the
     length of the edge turned into."""
     graph = nx.DiGraph()
-    for edge in net.getEdges(withInternal=False):
+    for edge in (e for e in net.getEdges(withInternal=False) if e.allows("passenger")):
         for after, links in edge.getOutgoing().items():
-            if edge.allows("passenger") and after.allows("passenger") and any(
-                    c.getDirection() not in "tT" for c in links):
+            if after.allows("passenger") and any(c.getDirection() not in "tT" for c in links):
                 graph.add_edge(edge.getID(), after.getID(), length=after.getLength())
     return graph
 

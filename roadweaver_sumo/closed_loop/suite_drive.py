@@ -41,10 +41,8 @@ def drive_suite(suite_dir: Path, controller, progress=None) -> dict:
                          "infractions": report["infraction_counts"]})
             if progress:
                 progress.done(f"{name} route {k}", f"{report['score']:.3f}")
-    label = controller if isinstance(controller, str) else getattr(controller, "__name__",
-                                                                   "callable")
     mean = sum(r["score"] for r in rows) / len(rows)
-    return {"controller": label, "mean_score": round(mean, 4), "routes": rows}
+    return {"controller": report["controller"], "mean_score": round(mean, 4), "routes": rows}
 
 
 def compare_scores(baseline: dict, table: dict) -> tuple[list[str], bool]:

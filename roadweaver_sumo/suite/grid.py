@@ -12,10 +12,12 @@ from dataclasses import asdict, dataclass, field
 
 from ..errors import RoadweaverError
 from ..spec import (
-    LEGACY_BOUNDARY,
+    DEFAULT_EGO_LENGTH_M,
+    LEGACY,
     LEGACY_DEPARTURES,
     LEGACY_RULES,
     LEGACY_VEHICLE_MIX,
+    UNSAID,
     ScenarioSpec,
 )
 
@@ -40,7 +42,7 @@ class SuiteSpec:
     departures: str = LEGACY_DEPARTURES
     fringe_factor: float = 1.0
     ego_routes: int = 0
-    ego_length: float = 5000.0
+    ego_length: float = DEFAULT_EGO_LENGTH_M
 
     def __post_init__(self) -> None:
         _normalise(self)
@@ -73,13 +75,12 @@ class SuiteSpec:
         ]  # fmt: skip
 
     def to_dict(self) -> dict:
-        """The fields, lists for tuples; rules, vehicle mix, departures and fringe factor only
-        when not the values of earlier versions, the ego route fields only when the suite has some, so that
-        manifests of suites without them read as before."""
+        """The fields, lists for tuples; the :data:`~roadweaver_sumo.spec.UNSAID` values left
+        out, and the ego route fields unless the suite has some, so that manifests of suites
+        without them read as before."""
         data = asdict(self)
-        for name, legacy in (("rules", LEGACY_RULES), ("vehicle_mix", LEGACY_VEHICLE_MIX),
-                             ("departures", LEGACY_DEPARTURES), ("fringe_factor", 1.0)):
-            if data[name] == legacy:
+        for name, value in UNSAID.items():
+            if data[name] == value:
                 del data[name]
         if not self.ego_routes:
             del data["ego_routes"], data["ego_length"]
@@ -94,8 +95,7 @@ class SuiteSpec:
         unknown = sorted(set(data) - known)
         if unknown:
             raise RoadweaverError(f"manifest: unknown suite field {unknown[0]!r}")
-        values = {"boundary": LEGACY_BOUNDARY, "rules": LEGACY_RULES,
-                  "vehicle_mix": LEGACY_VEHICLE_MIX, "departures": LEGACY_DEPARTURES, **data}
+        values = {**LEGACY, **data}
         for name in ("densities", "styles", "seeds"):
             if not isinstance(values.get(name), list):
                 raise RoadweaverError(f"manifest: suite field {name!r} must be a list")
