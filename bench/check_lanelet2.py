@@ -27,7 +27,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from roadweaver_sumo.export.lanelet2 import write_lanelet2
+from roadweaver_sumo.export.map_files import write_map_files
 from roadweaver_sumo.integrations.tactics2d import hd_lane_relations
 from roadweaver_sumo.validate.lanelet2_check import (
     check_lanelet2,
@@ -50,7 +50,8 @@ def build_hdmap_for(spec):
     from roadweaver_sumo.skeleton import make_skeleton
 
     graph = expand_skeleton(spec, make_skeleton(spec))
-    return build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights)
+    return build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights,
+                       rules=spec.rules)
 
 
 def cases(args, work: Path):
@@ -73,7 +74,7 @@ def cases(args, work: Path):
         if not osm.exists():
             osm.parent.mkdir(parents=True, exist_ok=True)
             start = time.perf_counter()
-            write_lanelet2(hd, osm)
+            write_map_files(hd, osm.parent)  # after netconvert: with its right of way
             write_s = time.perf_counter() - start
         yield spec, osm, hd, {"generate_s": generate_s, "write_s": write_s}
 

@@ -9,7 +9,7 @@ numpy < 2 and lxml < 6, so it lives in its own venv and is run as a child proces
     python bench/check_opendrive.py --qc-python /work/qcvenv/bin/python a.xodr b.xodr
 
 ``--qc-python`` defaults to ``$ROADWEAVER_QC_PYTHON``. Without files the sweep generates maps
-(densities x seeds, ``--size`` metres square, ``--style``) with ``write_opendrive`` and also
+(densities x seeds, ``--size`` metres square, ``--style``) as the pipeline writes them and also
 compares netconvert's import with the HD map: road nodes (degree != 2, within 2 %) and
 lane-level reachability. Prints one row per map (alignment in micrometres) and totals; ``--json`` saves the rows.
 """
@@ -30,7 +30,7 @@ from quality_sweep import seeds_arg  # bench/ is sys.path[0] when run as a scrip
 
 from roadweaver_sumo.errors import RoadweaverError
 from roadweaver_sumo.expand import expand_skeleton
-from roadweaver_sumo.export.opendrive import write_opendrive
+from roadweaver_sumo.export.map_files import write_map_files
 from roadweaver_sumo.hdmap import build_hdmap, lane_reachability
 from roadweaver_sumo.metrics import road_node_count
 from roadweaver_sumo.skeleton import make_skeleton
@@ -126,8 +126,9 @@ def sweep_row(density: float, seed: int, args, work: Path) -> dict:
     spec = ScenarioSpec(density=density, vehicles=1, width=args.size, height=args.size,
                         style=args.style, seed=seed)
     start = time.perf_counter()
-    hd = build_hdmap(expand_skeleton(spec, make_skeleton(spec)), spec.geo_origin)
-    xodr = write_opendrive(hd, work / "map.xodr")
+    hd = build_hdmap(expand_skeleton(spec, make_skeleton(spec)), spec.geo_origin,
+                     rules=spec.rules)
+    xodr = write_map_files(hd, work)["opendrive"]  # after netconvert: with its right of way
     row = check_file(xodr, args.qc_python, work)
     row.update(density=density, seed=seed, roads=len(hd.roads),
                connectors=sum(len(j.connectors) for j in hd.junctions.values()),

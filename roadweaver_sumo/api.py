@@ -96,23 +96,19 @@ def generate_map(spec: ScenarioSpec) -> HDMap:
 
 
 def write_map(hdmap: HDMap, folder: str | Path, template: str = "urban") -> dict[str, Path]:
-    """Write ``hdmap`` into ``folder`` in every format: SUMO plain XML, ``map.xodr``
-    (OpenDRIVE 1.7), ``lanelet2_map.osm`` and ``map.net.xml`` (netconvert with the packaged
-    ``template``, written beside it as ``netconvert.netccfg``).
+    """Write ``hdmap`` into ``folder`` in every format: SUMO plain XML, ``map.net.xml``
+    (netconvert with the packaged ``template``, written beside it as ``netconvert.netccfg``),
+    then ``map.xodr`` (OpenDRIVE 1.7) and ``lanelet2_map.osm`` with the right of way SUMO
+    decided (the connectors of ``hdmap`` carry it afterwards).
 
     Returns
     -------
     dict
         Paths by format: ``plain``, ``opendrive``, ``lanelet2``, ``sumo``.
     """
-    from .export.map_files import LANELET2_FILE, PLAIN_DIR, XODR_FILE, write_map_files
-    from .export.netconvert import NET_NAME, run_netconvert
+    from .export.map_files import write_map_files
 
-    folder = Path(folder)
-    write_map_files(hdmap, folder)
-    run_netconvert(folder, template)
-    return {"plain": folder / PLAIN_DIR, "opendrive": folder / XODR_FILE,
-            "lanelet2": folder / LANELET2_FILE, "sumo": folder / NET_NAME}
+    return write_map_files(hdmap, Path(folder), template)
 
 
 def make_scenario(spec: ScenarioSpec, folder: str | Path, *, force: bool = False,

@@ -95,7 +95,7 @@ def make_scenario(
 
 def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) -> dict:
     """Every stage up to the runnable scenario, one after another (paper Fig. 1: skeleton,
-    expansion, HD map, export; then SUMO's netconvert and the demand); returns the generation
+    expansion, HD map, export with SUMO's netconvert; then the demand); returns the generation
     metrics for the report."""
     stage = partial(_timed, stages, log)
     with cyclic_gc_paused():
@@ -121,11 +121,10 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
 
             hdmap = build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights,
                                 rules=spec.rules)
-        with stage("export ...", "export"):
-            from .export.map_files import write_map_files
+        from .export.map_files import write_map_files
 
-            write_map_files(hdmap, folder)
-            (folder / SPEC_FILE).write_text(spec.to_json(), encoding="utf-8")
+        write_map_files(hdmap, folder, spec.netconvert_template, timed=stage)
+        (folder / SPEC_FILE).write_text(spec.to_json(), encoding="utf-8")
     from .metrics import graph_metrics
     from .validate.overlaps import hdmap_overlaps
 
@@ -137,11 +136,7 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
     }
     if like:
         generation["like"] = like
-    del graph, hdmap  # their memory is free for netconvert and the simulation
-    with stage("netconvert ...", "netconvert"):
-        from .export.netconvert import run_netconvert
-
-        run_netconvert(folder, spec.netconvert_template)
+    del graph, hdmap  # their memory is free for the simulation
     with stage("demand ...", "demand"):
         from .scenario.demand import write_demand
         from .scenario.sumocfg import write_sumocfg

@@ -14,7 +14,8 @@ from lxml import etree
 from test_opendrive import town
 
 from roadweaver_sumo.expand import expand_skeleton
-from roadweaver_sumo.export.opendrive import connecting_road_ids, write_opendrive, xodr_lane_id
+from roadweaver_sumo.export.map_files import write_map_files
+from roadweaver_sumo.export.opendrive import connecting_road_ids, xodr_lane_id
 from roadweaver_sumo.hdmap import build_hdmap, lane_reachability
 from roadweaver_sumo.skeleton import make_skeleton
 from roadweaver_sumo.spec import ScenarioSpec
@@ -38,7 +39,7 @@ MAPS = {"town": town, "grid-learned": lambda: _generated("grid", "learned", 3),
 def loaded(request, tmp_path_factory):
     """HD map, written file and CARLA map of each test map."""
     hd = build_hdmap(MAPS[request.param](), (48.137, 11.575))
-    path = write_opendrive(hd, tmp_path_factory.mktemp(request.param) / "map.xodr")
+    path = write_map_files(hd, tmp_path_factory.mktemp(request.param))["opendrive"]
     return hd, path, carla.Map(request.param, path.read_text())
 
 

@@ -44,8 +44,8 @@ def test_scenario_folder_is_complete_and_passes(scenario):
 def test_timing_has_every_stage_and_the_whole_run(scenario):
     timing = json.loads((scenario / "timing.json").read_text())
     stages = timing["stages_s"]
-    assert set(stages) == {"skeleton", "expansion", "hdmap", "export", "netconvert", "demand",
-                           "validate", "preview"}
+    assert set(stages) == {"skeleton", "expansion", "hdmap", "export", "netconvert", "formats",
+                           "demand", "validate", "preview"}
     assert min(stages.values()) > 0
     assert sum(stages.values()) <= timing["total_s"]  # the stages run one after another
     assert timing["validation"]

@@ -9,6 +9,7 @@ from lxml import etree
 from roadweaver_sumo.expand import expand_skeleton
 from roadweaver_sumo.export.lanelet2 import LANE_TAG, write_lanelet2
 from roadweaver_sumo.export.lanelet2_boundaries import untangle
+from roadweaver_sumo.export.map_files import write_map_files
 from roadweaver_sumo.hdmap import build_hdmap
 from roadweaver_sumo.integrations.tactics2d import hd_lane_relations
 from roadweaver_sumo.projection import latlon_to_local, local_to_latlon
@@ -36,7 +37,9 @@ def hd():
 
 @pytest.fixture(scope="module")
 def osm(hd, tmp_path_factory):
-    return write_lanelet2(hd, tmp_path_factory.mktemp("lanelet2") / "lanelet2_map.osm")
+    """The lanelet2 file as the pipeline writes it: after netconvert, with SUMO's right of
+    way on the connectors (``hd`` carries it afterwards)."""
+    return write_map_files(hd, tmp_path_factory.mktemp("lanelet2"))["lanelet2"]
 
 
 class OsmFile:
@@ -48,12 +51,15 @@ class OsmFile:
         self.nodes = {n.get("id"): (float(n.get("lat")), float(n.get("lon")))
                       for n in root.iter("node")}
         self.ways = {w.get("id"): [nd.get("ref") for nd in w.iter("nd")] for w in root.iter("way")}
-        self.lanelets, self.tags, self.regulatory = {}, {}, {}
+        self.lanelets, self.tags, self.regulatory, self.rules = {}, {}, {}, {}
         for rel in root.iter("relation"):
             tags = {t.get("k"): t.get("v") for t in rel.iter("tag")}
             members = [(m.get("type"), m.get("role"), m.get("ref")) for m in rel.iter("member")]
             if tags["type"] == "lanelet":
-                self.lanelets[tags[LANE_TAG]] = {role: ref for _, role, ref in members}
+                self.lanelets[tags[LANE_TAG]] = {role: ref for _, role, ref in members
+                                                 if role != "regulatory_element"}
+                self.rules[tags[LANE_TAG]] = [ref for _, role, ref in members
+                                              if role == "regulatory_element"]
                 self.tags[tags[LANE_TAG]] = tags
             else:
                 self.regulatory[rel.get("id")] = (tags, members)
@@ -137,7 +143,7 @@ def test_speed_limits_and_widths_match_the_hdmap(hd, parsed):
 
 
 def test_output_is_byte_identical(hd, osm, tmp_path):
-    again = write_lanelet2(_hdmap(), tmp_path / "again.osm")
+    again = write_map_files(_hdmap(), tmp_path)["lanelet2"]
     assert again.read_bytes() == osm.read_bytes()
 
 
@@ -165,13 +171,14 @@ def test_traffic_lights_guard_the_approaches_of_signalised_junctions(hd, parsed)
     approaches = [road.lanes(d) for road in hd.roads.values() for d in ("f", "b")
                   if road.lanes(d) and hd.junctions[road.ends_at(d)].type == "traffic_light"]
     assert approaches, "the test map needs traffic lights"
-    assert len(parsed.regulatory) == len(approaches)
-    for tags, members in parsed.regulatory.values():
-        assert tags == {"type": "regulatory_element", "subtype": "traffic_light"}
+    lights = {rid: members for rid, (tags, members) in parsed.regulatory.items()
+              if tags == {"type": "regulatory_element", "subtype": "traffic_light"}}
+    assert len(lights) == len(approaches)
+    for members in lights.values():
         assert sorted(role for _, role, _ in members) == ["ref_line", "refers"]
     for lanes in approaches:
-        refs = {parsed.lanelets[lane].get("regulatory_element") for lane in lanes}
-        assert len(refs) == 1 and None not in refs
+        refs = {rid for lane in lanes for rid in parsed.rules[lane] if rid in lights}
+        assert len(refs) == 1, "one light for all lanes of an approach"
 
 
 def test_untangle_cuts_loops_and_fold_backs_and_keeps_ends():

@@ -16,6 +16,7 @@ from lxml import etree
 from scipy.integrate import quad
 
 from roadweaver_sumo.expand import expand_skeleton
+from roadweaver_sumo.export.map_files import write_map_files
 from roadweaver_sumo.export.opendrive import CURVATURE_DECIMALS, _num, write_opendrive
 from roadweaver_sumo.export.opendrive_geometry import DECIMALS
 from roadweaver_sumo.hdmap import build_hdmap, lane_reachability
@@ -55,7 +56,7 @@ def generated() -> nx.Graph:
 def exported(request, tmp_path_factory):
     G = generated() if request.param == "generated" else town()
     hd = build_hdmap(G, (48.137, 11.575))
-    path = write_opendrive(hd, tmp_path_factory.mktemp(request.param) / "map.xodr")
+    path = write_map_files(hd, tmp_path_factory.mktemp(request.param))["opendrive"]
     return hd, path, etree.parse(str(path)).getroot()
 
 
@@ -225,8 +226,9 @@ def test_header_and_traffic_lights(exported):
     header = root.find("header")
     assert (header.get("revMajor"), header.get("revMinor")) == ("1", "7")
     assert "+proj=tmerc +lat_0=48.137 +lon_0=11.575" in header.findtext("geoReference")
-    signals = {s.get("id"): s for s in root.iter("signal")}
+    signals = {s.get("id"): s for s in root.iter("signal") if s.get("type") == "1000001"}
     lights = [j for j in hd.junctions.values() if j.type == "traffic_light"]
+    assert lights, "the test maps have traffic lights"
     controllers = {c.get("id"): c for c in root.iterfind("controller")}
     assert set(controllers) == {str(j.id) for j in lights}
     assert len(signals) == sum(len(j.roads) for j in lights)  # one per arriving direction

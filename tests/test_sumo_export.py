@@ -200,8 +200,8 @@ def _digests(folder):
 def test_the_map_files_are_written_into_a_new_folder(tmp_path):
     map_files.write_map_files(build_hdmap(town(), GEO_ORIGIN), tmp_path / "new" / "folder")
     assert sorted(_digests(tmp_path / "new" / "folder")) == [
-        "lanelet2_map.osm", "map.xodr", "plain/map.con.xml", "plain/map.edg.xml",
-        "plain/map.nod.xml"]
+        "lanelet2_map.osm", "map.net.xml", "map.xodr", "netconvert.netccfg",
+        "plain/map.con.xml", "plain/map.edg.xml", "plain/map.nod.xml"]
 
 
 def test_shapes_write_every_number_as_single_numbers_are_written():

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import bisect
 import itertools
+from collections import defaultdict
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,12 +40,12 @@ from ..hdmap.model import HDMap, Lane
 from ..projection import local_to_latlon
 from ..scenario.xmlfile import DECLARATION
 from .lanelet2_boundaries import untangle_all
+from .lanelet2_rules import RegulatoryElement, rule_elements
 
 GENERATOR = "roadweaver-sumo"
 LANE_TAG = "roadweaver:lane"  # the HD map lane id of a lanelet, for loaders and debugging
 DEGREE_DECIMALS = 10  # 1e-10 degrees is about 0.01 mm
 INDENT = "    "  # the indent of the written file
-TRAFFIC_LIGHT_OFFSET_M = 1.0  # the traffic light way sits this far past the stop line
 
 # lanelet2 tagging spec (lanelet2_core/doc/LinestringTagging.md)
 DASHED = (("type", "line_thin"), ("subtype", "dashed"))  # lane change allowed both ways
@@ -185,39 +186,6 @@ def _lane_end_node(plan: _Plan, lane_id: str, side: str) -> int:
     return plan.ways[plan.slots[(lane_id, side)]].last
 
 
-@dataclass
-class _Signal:
-    """A traffic light regulatory element of one approach (one incoming road direction)."""
-
-    id: int
-    lanes: list[str]
-    light: int  # the traffic light way
-    stop_line: int  # its ref_line
-
-
-def _signals(hd: HDMap, plan: _Plan, ids: _Ids) -> tuple[list[_Signal], dict[int, tuple]]:
-    """One traffic light per approach to a ``traffic_light`` junction: a stop line across the
-    approach's lane ends (the lanes' own end nodes) and a light way just past it."""
-    signals, ways = [], {}
-    for rid in sorted(hd.roads):
-        road = hd.roads[rid]
-        for direction in ("f", "b"):
-            lanes = road.lanes(direction)
-            junction = hd.junctions[road.ends_at(direction)]
-            if not lanes or junction.type != "traffic_light":
-                continue
-            line = [_lane_end_node(plan, lanes[0], "right")]
-            line += [_lane_end_node(plan, lane, "left") for lane in lanes]
-            across = np.subtract(ids.xy(line[-1]), ids.xy(line[0]))  # right to left
-            shift = TRAFFIC_LIGHT_OFFSET_M * np.array([across[1], -across[0]]) / np.hypot(*across)
-            light = [ids.node(np.add(ids.xy(n), shift)) for n in (line[0], line[-1])]
-            stop_id, light_id = ids.new(), ids.new()
-            ways[stop_id] = (line, (("type", "stop_line"),))
-            ways[light_id] = (light, (("type", "traffic_light"), ("subtype", "red_yellow_green")))
-            signals.append(_Signal(ids.new(), lanes, light_id, stop_id))
-    return signals, ways
-
-
 def speed_limit_tag(speed_mps: float) -> str:
     """``speed_limit`` value: km/h as a bare number with two decimals at most. lanelet2 reads a
     bare number as km/h (as it reads "50 km/h"); Tactics2D and Autoware's map validator only
@@ -248,20 +216,20 @@ def _way(wid: int, nodes, tags: tuple) -> str:
                       *_tag_lines(tags), f"{INDENT}</way>"])
 
 
-def _traffic_light(signal: _Signal) -> str:
-    """The traffic light regulatory element of one approach."""
-    return "\n".join([_open("relation", signal.id), _member("way", signal.light, "refers"),
-                      _member("way", signal.stop_line, "ref_line"),
-                      *_tag_lines((("type", "regulatory_element"), ("subtype", "traffic_light"))),
+def _regulatory(element: RegulatoryElement) -> str:
+    """A regulatory element relation (``export.lanelet2_rules``)."""
+    return "\n".join([_open("relation", element.id),
+                      *(_member(kind, ref, role) for kind, ref, role in element.members),
+                      *_tag_lines((("type", "regulatory_element"),
+                                   ("subtype", element.subtype))),
                       f"{INDENT}</relation>"])
 
 
-def _lanelet(rid: int, lane: Lane, left: int, right: int, regulatory: int | None) -> str:
-    """A lane's lanelet relation: its bounds, its traffic light if any, its speed limit and its
-    own id."""
+def _lanelet(rid: int, lane: Lane, left: int, right: int, regulatory: list[int]) -> str:
+    """A lane's lanelet relation: its bounds, the regulatory elements it is subject to, its
+    speed limit and its own id."""
     members = [_member("way", left, "left"), _member("way", right, "right")]
-    if regulatory is not None:
-        members.append(_member("relation", regulatory, "regulatory_element"))
+    members += [_member("relation", element, "regulatory_element") for element in regulatory]
     tags = (("type", "lanelet"), ("subtype", "road"), ("location", "urban"), ("one_way", "yes"),
             ("speed_limit", speed_limit_tag(lane.speed)), (LANE_TAG, lane.id))
     return "\n".join([_open("relation", rid), *members, *_tag_lines(tags), f"{INDENT}</relation>"])
@@ -297,20 +265,24 @@ def osm_elements(hd: HDMap) -> Iterator[str]:
     plan = _plan_ways(hd)
     _assign_nodes(hd, plan, ids)
     way_ids = {key: ids.new() for key in plan.ways}  # consecutive, in plan order
-    signals, signal_ways = _signals(hd, plan, ids)
-    regulatory = {lane: s.id for s in signals for lane in s.lanes}
     lanes = sorted(hd.lanes.values(), key=lambda lane: lane.id)
-    lanelet_ids = [ids.new() for _ in lanes]
+    lanelet_ids = {lane.id: ids.new() for lane in lanes}
+    elements, rule_ways = rule_elements(
+        hd, lambda lane, side: _lane_end_node(plan, lane, side), ids, lanelet_ids)
+    regulatory = defaultdict(list)
+    for element in elements:
+        for lane in element.lanes:
+            regulatory[lane].append(element.id)
     return itertools.chain(
         [_bounds(hd)],
         _nodes(hd, ids),
         (_way(way_ids[key], [way.first, *way.inner, way.last], way.tags)
          for key, way in plan.ways.items()),
-        (_way(wid, nodes, tags) for wid, (nodes, tags) in signal_ways.items()),
-        map(_traffic_light, signals),
-        (_lanelet(rid, lane, way_ids[plan.slots[(lane.id, "left")]],
-                  way_ids[plan.slots[(lane.id, "right")]], regulatory.get(lane.id))
-         for rid, lane in zip(lanelet_ids, lanes, strict=True)))
+        (_way(wid, nodes, tags) for wid, (nodes, tags) in rule_ways.items()),
+        (_lanelet(lanelet_ids[lane.id], lane, way_ids[plan.slots[(lane.id, "left")]],
+                  way_ids[plan.slots[(lane.id, "right")]], regulatory[lane.id])
+         for lane in lanes),
+        map(_regulatory, elements))
 
 
 def write_lanelet2(hd: HDMap, path: Path) -> Path:

@@ -20,7 +20,11 @@
   connecting roads carry road- and lane-level predecessor and successor links. Lanes of roads
   that end in junctions carry no ``<link>`` (rule road.lane.link.no_link): their links are the
   junction's laneLinks and the connecting roads' lane links.
-* Traffic-light junctions get a ``<controller>`` and one signal per incoming road direction.
+* Right of way as SUMO decided it (``hdmap.right_of_way``): a traffic light, stop or yield
+  sign per approach that has one, a ``<controller>`` per traffic light, and junction
+  ``<priority>`` records (which connecting road yields to which), so that a reader that knows
+  no signs still knows who goes first. Without SUMO's decision (an HD map not yet through
+  netconvert) none of these are written.
 
 Output is deterministic: sorted ids, fixed decimals, fixed header date.
 """
@@ -36,8 +40,9 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from ..hdmap.model import DIRECTIONS, HDMap, Lane, Road
+from ..hdmap.model import HDMap, Lane, Road
 from ..hdmap.reference import Piece
+from ..hdmap.right_of_way import approach_control, approaches
 from ..projection import tmerc
 from .opendrive_geometry import DECIMALS, bezier_pieces
 
@@ -48,7 +53,9 @@ ROAD_TYPE = "town"  # OpenDRIVE 1.4 road type: known to every reader (see the mo
 MARK_WIDTH = 0.12  # m
 SIGNAL_SETBACK = 1.0  # m before the road end
 QUOTE = {'"': "&quot;"}  # escaped in attribute values besides &, <, >
-SIGNAL_CATALOGUE = {"country": "DE", "type": "1000001", "subtype": "-1"}  # StVO traffic light
+SIGNAL_COUNTRY = "DE"  # StVO sign codes: the catalogue CARLA's landmarks and esmini know
+SIGNAL_TYPES = {"traffic_light": "1000001", "stop": "206", "all_way_stop": "206",
+                "yield": "205"}
 
 
 def write_opendrive(hd: HDMap, path: Path) -> Path:
@@ -80,7 +87,7 @@ def opendrive_lines(hd: HDMap) -> Iterator[list[str]]:
     comes."""
     connecting = connecting_road_ids(hd)
     junctions = junction_ids(hd)
-    signals, controllers = _traffic_lights(hd)
+    signals, controllers = _signals(hd)
     connectors = hd.connectors()
     return itertools.chain(
         [_header(hd)],
@@ -292,7 +299,9 @@ def _connecting_road(hd: HDMap, lane: Lane, piece: Piece, rid: int, jid: int) ->
 
 def _junction(hd: HDMap, node: int, jid: int, connecting: dict[str, int]) -> list[str]:
     """``<junction>`` ``jid`` of node ``node``: one connection per connecting road, from its
-    incoming road."""
+    incoming road; a ``<priority>`` record for each pair of connecting roads where the one
+    (``low``) yields to the other (``high``) as SUMO decided (``hdmap.right_of_way``); the
+    junction's traffic light controller."""
     junction = hd.junctions[node]
     children = []
     for k, lane_id in enumerate(junction.connectors):
@@ -302,47 +311,57 @@ def _junction(hd: HDMap, node: int, jid: int, connecting: dict[str, int]) -> lis
                                                "contactPoint": "start"},
                              _element(3, "laneLink", {"from": xodr_lane_id(hd, incoming),
                                                       "to": -1}))
-    if junction.type == "traffic_light":
+    for lane_id in junction.connectors:
+        for prohibitor in hd.lanes[lane_id].yields_to:
+            children += _element(2, "priority", {"high": connecting[prohibitor],
+                                                 "low": connecting[lane_id]})
+    if any(hd.lanes[c].traffic_light for c in junction.connectors):
         children += _element(2, "controller", {"id": node, "type": "0", "sequence": 0})
     return _element(1, "junction", {"id": jid, "name": f"n{node}", "type": "default"}, children)
 
 
-def _traffic_lights(hd: HDMap) -> tuple[dict[int, list[list[str]]], list[list[str]]]:
+def _signals(hd: HDMap) -> tuple[dict[int, list[list[str]]], list[list[str]]]:
     """Signals per road (road id -> the lines of its ``<signal>`` elements) and one
-    ``<controller>`` per traffic-light junction listing them (chapter "Signals":
-    controllers). A signal stands right of each road direction arriving at the junction,
-    ``SIGNAL_SETBACK`` before its end, valid for all lanes of that direction."""
-    signals, controllers = defaultdict(list), []
-    count = 0
-    for jid in sorted(hd.junctions):
-        junction = hd.junctions[jid]
-        if junction.type != "traffic_light" or not junction.connectors:
-            continue
-        controls = []
-        for rid in junction.roads:
-            road = hd.roads[rid]
-            for direction in DIRECTIONS:
-                if road.ends_at(direction) != jid:
-                    continue
-                signals[rid].append(_signal(road, direction, count, jid))
-                controls += _element(2, "control", {"signalId": count, "type": "0"})
-                count += 1
-        controllers.append(_element(1, "controller", {"id": jid, "name": f"n{jid}"}, controls))
+    ``<controller>`` per traffic light listing its lights (chapter "Signals": controllers).
+
+    Each approach gets the signal of its control as SUMO decided it
+    (``right_of_way.approach_control``): a traffic light, a stop sign (also at all-way
+    stops, where every approach has one) or a yield sign, in the StVO catalogue that CARLA
+    and esmini read (``SIGNAL_TYPES``). It stands right of the approach, ``SIGNAL_SETBACK``
+    before the road's end, valid for all lanes of that direction. Approaches with right of
+    way, or right before left (no sign in the towns whose rules we follow), get none; their
+    junction's ``<priority>`` records say who yields."""
+    signals, lights = defaultdict(list), defaultdict(list)
+    controlled = [(node, lanes, approach_control(hd, lanes))
+                  for (node, _), lanes in approaches(hd).items()]
+    controlled = [approach for approach in controlled if approach[2] is not None]
+    for sid, (node, lanes, control) in enumerate(controlled):
+        lane = hd.lanes[lanes[0]]
+        road = hd.roads[lane.road]
+        signals[road.id].append(_signal(road, lane.direction, sid, node, control))
+        if control == "traffic_light":
+            lights[node] += _element(2, "control", {"signalId": sid, "type": "0"})
+    controllers = [_element(1, "controller", {"id": node, "name": f"n{node}"}, lights[node])
+                   for node in sorted(lights)]
     return signals, controllers
 
 
-def _signal(road: Road, direction: str, sid: int, jid: int) -> list[str]:
-    """One traffic light for driving direction ``direction`` of ``road`` (orientation ``+``
-    faces traffic along the reference line)."""
+def _signal(road: Road, direction: str, sid: int, node: int, control: str) -> list[str]:
+    """The signal of ``control`` for driving direction ``direction`` of ``road``
+    (orientation ``+`` faces traffic along the reference line)."""
     length = sum(p.length for p in road.plan)
     setback = min(SIGNAL_SETBACK, length / 2.0)
     n = len(road.lanes(direction))
     side = -1.0 if direction == "f" else 1.0
     lanes = (-n, -1) if direction == "f" else (1, n)
+    light = control == "traffic_light"
     return _element(3, "signal", {"s": length - setback if direction == "f" else setback,
                                   "t": side * (n * road.lane_width + 0.5), "id": sid,
-                                  "name": f"n{jid}_r{road.id}_{direction}", "dynamic": "yes",
+                                  "name": f"n{node}_r{road.id}_{direction}",
+                                  "dynamic": "yes" if light else "no",
                                   "orientation": "+" if direction == "f" else "-",
-                                  "zOffset": 2.0, **SIGNAL_CATALOGUE, "height": 0.9,
-                                  "width": 0.3},
+                                  "zOffset": 2.0 if light else 1.5, "country": SIGNAL_COUNTRY,
+                                  "type": SIGNAL_TYPES[control], "subtype": "-1",
+                                  "height": 0.9 if light else 0.6,
+                                  "width": 0.3 if light else 0.6},
                     _element(4, "validity", {"fromLane": lanes[0], "toLane": lanes[1]}))

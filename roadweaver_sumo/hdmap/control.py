@@ -17,7 +17,8 @@ common, judged by the classes of the roads meeting and the number of arms:
 Traffic lights are the same in every set: where two arterials cross or meet, or an arterial
 crosses a collector (``signalised``), on maps dense enough for lights. Dead ends are
 ``dead_end``, and a road that just goes on through a two-arm node is ``priority``. The names
-are SUMO's node types; only the SUMO net carries the controls other than lights so far.
+are SUMO's node types; netconvert turns them into each link's right of way, which
+``right_of_way`` carries to OpenDRIVE and lanelet2.
 """
 
 from __future__ import annotations

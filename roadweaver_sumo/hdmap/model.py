@@ -65,6 +65,11 @@ class Lane:
     predecessors: list[str] = field(default_factory=list)
     left_neighbour: str | None = None
     right_neighbour: str | None = None
+    #: connectors, once SUMO has built the net (``hdmap.right_of_way``): SUMO's link state
+    #: letter, the traffic light controlling the link, the connectors it must yield to
+    link_state: str | None = None
+    traffic_light: str | None = None
+    yields_to: list[str] = field(default_factory=list)
 
     @property
     def edge(self) -> str | None:

@@ -16,7 +16,7 @@ import json
 import subprocess
 import sys
 import time
-from collections import defaultdict
+from collections import Counter, defaultdict
 from pathlib import Path
 
 import numpy as np
@@ -99,6 +99,8 @@ def measure_lanelet2(osm: Path, origin: tuple[float, float], pairs: int = 1000,
         "lanelets": len(lanelets),
         "traffic_lights": sum(1 for r in lmap.regulatoryElementLayer
                               if r.attributes["subtype"] == "traffic_light"),
+        "regulatory_elements": dict(sorted(Counter(
+            r.attributes["subtype"] for r in lmap.regulatoryElementLayer).items())),
         "inverted_bounds": _inverted_bounds(lanelets),
         "topology_mismatches": _topology_mismatches(osm, graph, lanelets),
         "routing_graph_errors": len(graph.checkValidity(False)),
