@@ -51,7 +51,7 @@ def build_hdmap_for(spec):
 
     graph = expand_skeleton(spec, make_skeleton(spec))
     return build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights,
-                       rules=spec.rules)
+                       rules=spec.rules, one_way_share=spec.one_way_share)
 
 
 def cases(args, work: Path):

@@ -127,7 +127,7 @@ def sweep_row(density: float, seed: int, args, work: Path) -> dict:
                         style=args.style, seed=seed)
     start = time.perf_counter()
     hd = build_hdmap(expand_skeleton(spec, make_skeleton(spec)), spec.geo_origin,
-                     rules=spec.rules)
+                     rules=spec.rules, one_way_share=spec.one_way_share)
     xodr = write_map_files(hd, work)["opendrive"]  # after netconvert: with its right of way
     row = check_file(xodr, args.qc_python, work)
     row.update(density=density, seed=seed, roads=len(hd.roads),

@@ -67,7 +67,8 @@ def file_hashes(options: dict) -> tuple[dict, list[float]]:
         marks.append(time.perf_counter())
         graph = expand_skeleton(spec, skeleton)
         marks.append(time.perf_counter())
-        hd = build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights)
+        hd = build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights,
+                         rules=spec.rules, one_way_share=spec.one_way_share)
         marks.append(time.perf_counter())
         write_map_files(hd, Path(tmp))
         marks.append(time.perf_counter())

@@ -17,6 +17,7 @@ from .spec import (
     BOUNDARIES,
     DEFAULT_EGO_LENGTH_M,
     DEFAULT_GEO_ORIGIN,
+    DEFAULT_ONE_WAY_SHARE,
     DEFAULT_RULES,
     DEFAULT_VEHICLE_MIX,
     DEPARTURES,
@@ -49,6 +50,8 @@ MIX_HELP = ("vehicle classes and their shares of the trips, SUMO's classes with 
 DEFAULT_MIX_TEXT = ",".join(f"{k}:{v:g}" for k, v in DEFAULT_VEHICLE_MIX.items())
 FRINGE_HELP = ("randomTrips' --fringe-factor: trips start and end this many times likelier where "
                "roads leave an open map")
+ONE_WAY_HELP = ("share of the local street length made one-way: streets followed straight "
+                "through junctions, neighbours in opposite directions (one-way pairs)")
 DEPARTURES_HELP = "random: uniform random departure times (randomTrips --random-depart); even"
 BOUNDARY_HELP = ("open: roads run off the map edge, as in a map cut out of a town; ring: a ring "
                  "road just inside the border closes the map")
@@ -217,10 +220,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_rule_and_demand_options(parser: argparse.ArgumentParser) -> None:
-    """``--rules``, ``--vehicle-mix``, ``--departures`` and ``--fringe-factor``: the same for
+    """``--rules``, ``--one-way-share``, ``--vehicle-mix``, ``--departures`` and
+    ``--fringe-factor``: the same for
     a scenario and for every scenario of a suite."""
     parser.add_argument("--rules", default=DEFAULT_RULES, metavar=_choices(RULES),
                         help=RULES_HELP)
+    parser.add_argument("--one-way-share", type=_number(float, 0.0, 1.0),
+                        default=DEFAULT_ONE_WAY_SHARE, help=ONE_WAY_HELP)
     parser.add_argument("--vehicle-mix", default=DEFAULT_MIX_TEXT, help=MIX_HELP)
     parser.add_argument("--departures", default="random", metavar=_choices(DEPARTURES),
                         help=DEPARTURES_HELP)

@@ -153,11 +153,20 @@ def _deviation(a, b):
 
 
 def stroke_lengths(H: nx.Graph, arms: dict | None = None) -> np.ndarray:
-    """Lengths of the strokes: roads followed straight on through junctions (Thomson 2006,
-    "The 'stroke' concept in geographic network generalization"). At every node the pair of arms
-    closest to straight is joined first, then the next among those left, while they deviate
-    by at most STRAIGHT_TOL_DEG; each arm joins at most one other."""
-    arms = junction_arms(H) if arms is None else arms
+    """Lengths of the strokes (:func:`stroke_groups`)."""
+    groups = stroke_groups(H, junction_arms(H) if arms is None else arms)
+    length: dict = defaultdict(float)
+    for e in H.edges:
+        length[groups[e]] += edge_length(H, *e)
+    return np.array(list(length.values()))
+
+
+def stroke_groups(H: nx.Graph, arms: dict) -> dict:
+    """Edge -> its stroke (an edge standing for it): roads followed straight on through
+    junctions (Thomson 2006, "The 'stroke' concept in geographic network generalization").
+    At every node the pair of arms closest to straight is joined first, then the next among
+    those left, while they deviate by at most STRAIGHT_TOL_DEG; each arm joins at most one
+    other. ``arms``: :func:`junction_arms`."""
     strokes = nx.utils.UnionFind(H.edges)
     tol = math.radians(STRAIGHT_TOL_DEG)
     for node_arms in arms.values():
@@ -169,10 +178,7 @@ def stroke_lengths(H: nx.Graph, arms: dict | None = None) -> np.ndarray:
             if dev <= tol and i not in used and j not in used:
                 used |= {i, j}
                 strokes.union(node_arms[i][1], node_arms[j][1])
-    length: dict = defaultdict(float)
-    for e in H.edges:
-        length[strokes[e]] += edge_length(H, *e)
-    return np.array(list(length.values()))
+    return {e: strokes[e] for e in H.edges}
 
 
 def _weighted_median(lengths: np.ndarray) -> float:

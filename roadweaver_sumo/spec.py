@@ -25,6 +25,7 @@ SKELETONS = ("learned", "procedural")
 RULES = ("de", "us", "priority")
 DEFAULT_RULES = "de"
 LEGACY_RULES = "priority"  # of a spec or suite written before there was a choice
+DEFAULT_ONE_WAY_SHARE = 0.2
 #: SUMO vehicle classes a demand may mix (each gets SUMO's default vType of its class), and
 #: the default mix: shares of the trips (``scenario.demand``)
 VEHICLE_CLASSES = ("passenger", "truck", "bus", "motorcycle", "bicycle", "delivery")
@@ -40,7 +41,7 @@ LEGACY_DEPARTURES = "even"
 #: spec.json and manifests leave these values unsaid, and reading supplies them, so that a
 #: suite built then rebuilds to the same bytes.
 UNSAID = {"rules": LEGACY_RULES, "vehicle_mix": LEGACY_VEHICLE_MIX,
-          "departures": LEGACY_DEPARTURES, "fringe_factor": 1.0}
+          "departures": LEGACY_DEPARTURES, "fringe_factor": 1.0, "one_way_share": 0.0}
 LEGACY = {"boundary": LEGACY_BOUNDARY, **UNSAID}  # spec.json leaves the ring unsaid too
 MAX_SIDE_M = 50_000.0
 MIN_SIDE_M = 200.0
@@ -79,6 +80,8 @@ class ScenarioSpec:
     boundary: str = "open"
     #: regional traffic rules: junction control (``hdmap.control``)
     rules: str = DEFAULT_RULES
+    #: share of the local street length made one-way, in alternating pairs (``hdmap.one_way``)
+    one_way_share: float = DEFAULT_ONE_WAY_SHARE
     duration: float = 3600.0
     #: vehicle class -> share of the trips; departure times random or evenly spread
     vehicle_mix: dict = field(default_factory=lambda: dict(DEFAULT_VEHICLE_MIX))
@@ -127,6 +130,9 @@ class ScenarioSpec:
                 f"unknown boundary {self.boundary!r}; choose one of {', '.join(BOUNDARIES)}")
         if self.rules not in RULES:
             raise RoadweaverError(f"unknown rules {self.rules!r}; choose one of {', '.join(RULES)}")
+        _check_number("--one-way-share", self.one_way_share)
+        if not 0 <= self.one_way_share <= 1:
+            raise RoadweaverError(f"--one-way-share must be 0..1, got {self.one_way_share:g}")
         _check_vehicle_mix(self.vehicle_mix)
         if self.departures not in DEPARTURES:
             raise RoadweaverError(f"unknown departures {self.departures!r}; choose one of "

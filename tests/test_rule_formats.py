@@ -1,7 +1,8 @@
 """One truth, three formats (issue 36): the rules of one map read from ``map.net.xml``,
 ``map.xodr`` and ``lanelet2_map.osm`` by readers that know nothing of our HD map, matched one
 to one: the control of every approach (light, stop, all-way stop, yield), the lanes each light
-and sign governs, every "who yields to whom" pair of links, and each lane's speed limit.
+and sign governs, every "who yields to whom" pair of links, the one-way streets and each
+lane's speed limit.
 CARLA's map API reads the same signals."""
 
 from __future__ import annotations
@@ -33,6 +34,9 @@ class Net:
         root = etree.parse(str(path)).getroot()
         self.speed = {lane.get("id"): float(lane.get("speed")) for edge in root.iter("edge")
                       if edge.get("function") is None for lane in edge.iter("lane")}
+        ends = {(e.get("from"), e.get("to")): e.get("id") for e in root.iter("edge")
+                if e.get("function") is None}
+        self.one_way = {edge for (a, b), edge in ends.items() if (b, a) not in ends}
         by_lane = defaultdict(list)
         for c in root.iter("connection"):
             if not c.get("from").startswith(":"):
@@ -70,6 +74,9 @@ class Xodr:
         for rid, road in roads.items():
             for side in ("left", "right"):
                 self.count[rid, side] = len(road.findall(f"lanes/laneSection/{side}/lane"))
+        self.one_way = {f"r{rid}_{'f' if self.count[rid, 'right'] else 'b'}"
+                        for rid, road in roads.items() if road.get("junction") == "-1"
+                        and not (self.count[rid, "left"] and self.count[rid, "right"])}
         self.signals, self.signal_lanes, self.speed = {}, {}, {}
         for rid, road in roads.items():
             if road.get("junction") != "-1":
@@ -132,6 +139,8 @@ class Lanelet2:
                      for rid in lanelets if rid not in road}
         self.speed = {lane: float(lanelets[rid][0]["speed_limit"]) / 3.6
                       for rid, lane in road.items()}
+        edges = {lane.rsplit("_", 1)[0] for lane in road.values()}
+        self.one_way = {e for e in edges if f"{e[:-1]}{'b' if e[-1] == 'f' else 'f'}" not in edges}
         self.control, self.lanes, self.yields = {}, defaultdict(set), defaultdict(set)
         referring = defaultdict(list)  # regulatory element -> road lanes whose lanelet refers
         for rid, lane in road.items():
@@ -171,6 +180,7 @@ def test_the_three_formats_hold_the_same_rules(files):
     assert sum(map(len, yielding.values())) > 50
     assert dict(xodr.yields) == yielding
     assert dict(osm.yields) == yielding
+    assert net.one_way and xodr.one_way == net.one_way == osm.one_way
     road_lanes = {lane for lane in net.speed if not lane.startswith(":")}
     assert len(set(net.speed.values())) >= 3, "30, 40 and 50 km/h"
     for lane in road_lanes:

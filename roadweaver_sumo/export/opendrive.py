@@ -216,11 +216,17 @@ def _type(road_class: str, speed: float) -> tuple[str, ...]:
 def _lanes(hd: HDMap, road: Road) -> list[str]:
     """``<lanes>``: one lane section, left lanes outermost (id n) first and right lanes
     innermost (id -1) first (descending ids)."""
-    centre = _element(5, "lane", {"id": 0, "type": "none"},
-                      _mark("solid" if road.road_class == "arterial" else "broken"))
-    section = [*_side(hd, "left", road.lanes("b")), *_element(4, "center", {}, centre),
+    solid = road.road_class == "arterial" or road.one_way
+    centre = _element(5, "lane", {"id": 0, "type": "none"}, _mark("solid" if solid else "broken"))
+    section = [*(_side(hd, "left", road.lanes("b")) if road.lanes("b") else []),
+               *_element(4, "center", {}, centre),
                *_side(hd, "right", reversed(road.lanes("f")))]
-    return _element(2, "lanes", {}, _element(3, "laneSection", {"s": 0.0}, section))
+    offset = []  # a one-way road's lanes are centred on the reference line
+    if road.one_way:
+        offset = _element(3, "laneOffset", {"s": 0.0, "a": len(road.lanes("f")) * road.lane_width
+                                            / 2.0, "b": 0.0, "c": 0.0, "d": 0.0})
+    return _element(2, "lanes", {}, [*offset,
+                                     *_element(3, "laneSection", {"s": 0.0}, section)])
 
 
 def _side(hd: HDMap, tag: str, lane_ids) -> list[str]:

@@ -2,7 +2,8 @@
 
 One SUMO edge per road direction (``r7_f`` along the reference line, ``r7_b`` against it), whose
 shape is the road's centreline in driving direction: SUMO's default ``spreadType="right"`` puts
-the lanes right of it, as in the HD map, so SUMO lane ``r7_f_0`` is HD map lane ``r7_f_0``.
+the lanes right of it, as in the HD map, so SUMO lane ``r7_f_0`` is HD map lane ``r7_f_0``. A
+one-way road has only its ``f`` edge, its lanes centred on the shape (``spreadType="center"``).
 
 Connections come from the HD map's lane graph only. netconvert keeps exactly the connections
 given for an edge that has any, but guesses all (U-turns included) for an edge that has none;
@@ -91,6 +92,8 @@ def plain_edges(hd: HDMap) -> etree._Element:
         road = hd.roads[rid]
         points = _points(road.centreline)  # formatted once, for both directions
         for direction in DIRECTIONS:
+            if not road.lanes(direction):  # a one-way road
+                continue
             line = points if direction == "f" else points[::-1]
             etree.SubElement(root, "edge", {
                 "id": edge_id(rid, direction),
@@ -100,7 +103,7 @@ def plain_edges(hd: HDMap) -> etree._Element:
                 "numLanes": str(len(road.lanes(direction))),
                 "speed": _num(road.speed),
                 "width": _num(road.lane_width),
-                "spreadType": "right",
+                "spreadType": "center" if road.one_way else "right",
                 "shape": " ".join(line),
             })
     return root
@@ -130,7 +133,8 @@ def plain_connections(hd: HDMap) -> etree._Element:
     root = _root("connections", "connections_file.xsd")
     connections = lane_connections(hd)
     connected = {c[0] for c in connections}
-    every_edge = sorted(edge_id(r, d) for r in hd.roads for d in DIRECTIONS)
+    every_edge = sorted(edge_id(r, d) for r in hd.roads for d in DIRECTIONS
+                        if hd.roads[r].lanes(d))
     for edge in every_edge:
         if edge not in connected:
             etree.SubElement(root, "connection", {"from": edge})

@@ -9,6 +9,7 @@ from .junctions import add_connectors, folding_turns, make_junctions
 from .lanes import build_road_lanes, lane_ends, make_roads, plan_reference_lines
 from .model import HDMap, Road
 from .movements import junction_plan
+from .one_way import choose_one_way
 from .topology import add_successor_links, repair_topology
 
 #: A junction whose turn bends tighter than half its lane's width (its inner lane edge folds
@@ -21,14 +22,15 @@ WIDEN_FACTOR, WIDEN_ROUNDS, BAN_ROUNDS = 1.25, 4, 3
 
 def build_hdmap(
     G: nx.Graph, geo_origin: tuple[float, float] | None = None, *, traffic_lights: bool = True,
-    rules: str = DEFAULT_RULES,
+    rules: str = DEFAULT_RULES, one_way_share: float = 0.0,
 ) -> HDMap:
     """Build the lane-level HD map of a RoadGraph (paper Algorithm 1).
 
     ``geo_origin`` is the (lat, lon) of the local origin, written by exporters as the map's
     geo-reference; by default ``G.graph["geo_origin"]`` if present. Junction control follows
     the regional ``rules`` (``control.RULES``); ``traffic_lights=False`` leaves out the lights
-    (suburban maps).
+    (suburban maps). Up to ``one_way_share`` of the local street length becomes one-way
+    (``one_way``).
     RepairLaneGeometry needs no pass of its own: connectors end exactly on the lanes they join
     and junction trims leave every road a lane section (see ``lanes.MAX_TRIM_SHARE``).
     """
@@ -39,6 +41,7 @@ def build_hdmap(
         graph=G,
     )
     hd.roads = make_roads(G)  # RefineRoadGraph, AssignLaneConfig
+    choose_one_way(G, hd.roads, one_way_share)
     nodes = {n: G.nodes[n]["xy"] for n in G.nodes}
     hd.junctions = make_junctions(nodes, hd.roads, traffic_lights, rules)
     roads, junctions = list(hd.roads.values()), list(hd.junctions)

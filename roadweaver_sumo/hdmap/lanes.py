@@ -2,7 +2,8 @@
 AssignLaneConfig, GenerateLaneBoundaries, ConstructDirectionalLanes).
 
 Right-hand traffic: lanes driving along the reference line lie right of it, the others left of
-it; every road is two-way with the same lane count in both directions.
+it; a two-way road has the same lane count in both directions, a one-way road
+(``one_way``) its lanes centred on the reference line.
 """
 
 from __future__ import annotations
@@ -117,7 +118,8 @@ def plan_reference_lines(roads: list[Road], trims: list[tuple[float, float]]) ->
             plans[k], lines[k] = plan, line
     for road, (s0, s1, _), line, plan in zip(roads, cuts, lines, plans, strict=True):
         n = LANE_CONFIGS[road.road_class].lanes
-        ids = {d: [road_lane_id(road.id, d, k) for k in range(n)] for d in "fb"}
+        ids = {d: [road_lane_id(road.id, d, k) for k in range(n)] for d in _directions(road)}
+        ids.setdefault("b", [])
         road.sections = [LaneSection(s0, s1, ids["f"], ids["b"])]
         road.plan = plan
         road.reference = plan_points(plan, line[0], line[-1])
@@ -158,21 +160,29 @@ def build_road_lanes(road: Road) -> list[Lane]:
     build the directional lanes of both driving directions."""
     n = LANE_CONFIGS[road.road_class].lanes
     points, tangents = road.reference
-    both = offset_along(points, tangents, _lane_offsets(road.road_class)[:, None])
+    both = offset_along(points, tangents,
+                        _lane_offsets(road.road_class, road.one_way)[:, None])
     lines = {"f": both[: 2 * n + 1], "b": both[2 * n + 1 :, ::-1]}
-    return [lane for d in "fb" for lane in _directional_lanes(road, d, lines[d][: n + 1],
-                                                               lines[d][n + 1 :])]
+    return [lane for d in _directions(road)
+            for lane in _directional_lanes(road, d, lines[d][: n + 1], lines[d][n + 1 :])]
+
+
+def _directions(road: Road) -> str:
+    return "f" if road.one_way else "fb"
 
 
 @cache
-def _lane_offsets(road_class: str) -> np.ndarray:
+def _lane_offsets(road_class: str, one_way: bool = False) -> np.ndarray:
     """Left offsets of a road's lines from its reference line: first those of its ``f`` lanes,
-    then the same to the left for its ``b`` lanes (one array for one offsetting call)."""
+    then the same to the left for its ``b`` lanes (one array for one offsetting call); a
+    one-way road's ``f`` lanes are centred on the reference line and it has no ``b`` lanes."""
     cfg = LANE_CONFIGS[road_class]
     n, w = cfg.lanes, cfg.width
     # distances right of the driving direction: boundary j at (n - j) lane widths (j = 0 the
     # outermost, j = n the reference line itself), then lane k's centre at (n - k - 0.5) widths
     right = w * np.concatenate([np.arange(n, -1, -1), np.arange(n, 0, -1) - 0.5])
+    if one_way:
+        return -(right - n * w / 2.0)
     return np.concatenate([-right, right])
 
 

@@ -101,6 +101,9 @@ class Road:
     speed: float
     lane_width: float
     sections: list[LaneSection]
+    #: one-way roads (``hdmap.one_way``) run along their reference line: ``f`` lanes only,
+    #: centred on it
+    one_way: bool = False
     #: lines and arcs of the reference line within the lane section (``hdmap.reference``)
     plan: list = field(default_factory=list)
     #: ``plan`` sampled: the points the lanes are offset from and their unit tangents

@@ -59,6 +59,8 @@ def approaches(hd: HDMap, node: int, ends: LaneEnds) -> tuple[list[Approach], li
         road = hd.roads[rid]
         for direction in DIRECTIONS:
             lanes = road.lanes(direction)
+            if not lanes:  # the missing direction of a one-way road
+                continue
             row = ends.row[lanes[0]]
             if road.ends_at(direction) == node:
                 arrivals.append(Approach(rid, lanes, ends.end_tangent[row]))

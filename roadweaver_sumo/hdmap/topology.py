@@ -91,6 +91,8 @@ def _uturns_for_closed_components(hd: HDMap) -> int:
 
     for rid in sorted(hd.roads):
         road = hd.roads[rid]
+        if road.one_way:  # no reverse to turn into
+            continue
         for direction, reverse in zip(DIRECTIONS, DIRECTIONS[::-1], strict=True):
             here, back = road.lanes(direction)[-1], road.lanes(reverse)[-1]  # leftmost lanes
             if comp[here] == comp[back]:

@@ -38,6 +38,7 @@ class SuiteSpec:
     skeleton: str = "procedural"
     boundary: str = "ring"
     rules: str = LEGACY_RULES
+    one_way_share: float = 0.0
     vehicle_mix: dict = field(default_factory=lambda: dict(LEGACY_VEHICLE_MIX))
     departures: str = LEGACY_DEPARTURES
     fringe_factor: float = 1.0
@@ -67,6 +68,7 @@ class SuiteSpec:
             ScenarioSpec(density=d, vehicles=self.vehicles, width=self.width, height=self.height,
                          seed=s, style=style, skeleton=self.skeleton, duration=self.duration,
                          boundary=self.boundary, rules=self.rules,
+                         one_way_share=self.one_way_share,
                          vehicle_mix=dict(self.vehicle_mix), departures=self.departures,
                          fringe_factor=self.fringe_factor,
                          ego_routes=self.ego_routes,
@@ -114,7 +116,7 @@ def _normalise(suite: SuiteSpec) -> None:
         is_number = isinstance(value, (int, float)) and not isinstance(value, bool)
         return float(value) if is_number else value  # anything else: ScenarioSpec says why
 
-    for name in ("width", "height", "duration", "ego_length", "fringe_factor"):
+    for name in ("width", "height", "duration", "ego_length", "fringe_factor", "one_way_share"):
         object.__setattr__(suite, name, as_float(getattr(suite, name)))
     if isinstance(suite.densities, tuple):
         object.__setattr__(suite, "densities", tuple(as_float(d) for d in suite.densities))
