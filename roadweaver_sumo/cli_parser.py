@@ -18,6 +18,7 @@ from .spec import (
     DEFAULT_EGO_LENGTH_M,
     DEFAULT_GEO_ORIGIN,
     DEFAULT_ONE_WAY_SHARE,
+    DEFAULT_PERSONS,
     DEFAULT_RULES,
     DEFAULT_VEHICLE_MIX,
     DEPARTURES,
@@ -220,13 +221,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_rule_and_demand_options(parser: argparse.ArgumentParser) -> None:
-    """``--rules``, ``--one-way-share``, ``--vehicle-mix``, ``--departures`` and
-    ``--fringe-factor``: the same for
+    """``--rules``, ``--one-way-share``, ``--sidewalks``, ``--persons``, ``--vehicle-mix``,
+    ``--departures`` and ``--fringe-factor``: the same for
     a scenario and for every scenario of a suite."""
     parser.add_argument("--rules", default=DEFAULT_RULES, metavar=_choices(RULES),
                         help=RULES_HELP)
     parser.add_argument("--one-way-share", type=_number(float, 0.0, 1.0),
                         default=DEFAULT_ONE_WAY_SHARE, help=ONE_WAY_HELP)
+    parser.add_argument("--sidewalks", action="store_true",
+                        help="a 2 m sidewalk beside every driving direction and a pedestrian "
+                             "crossing over every road at junctions of three or more roads")
+    parser.add_argument("--persons", type=_number(int, 0, MAX_VEHICLES), default=DEFAULT_PERSONS,
+                        help="pedestrians walking 100-1000 m (at most 2.5 km on foot) on the "
+                             "sidewalks over --duration; needs --sidewalks")
     parser.add_argument("--vehicle-mix", default=DEFAULT_MIX_TEXT, help=MIX_HELP)
     parser.add_argument("--departures", default="random", metavar=_choices(DEPARTURES),
                         help=DEPARTURES_HELP)

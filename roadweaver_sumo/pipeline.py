@@ -120,7 +120,8 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
             from .hdmap import build_hdmap, hdmap_metrics
 
             hdmap = build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights,
-                                rules=spec.rules, one_way_share=spec.one_way_share)
+                                rules=spec.rules, one_way_share=spec.one_way_share,
+                                sidewalks=spec.sidewalks)
         from .export.map_files import write_map_files
 
         write_map_files(hdmap, folder, spec.netconvert_template, timed=stage)
@@ -144,7 +145,12 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
         write_demand(folder, vehicles=spec.vehicles, duration=spec.duration, seed=spec.seed,
                      vehicle_mix=spec.vehicle_mix, departures=spec.departures,
                      fringe_factor=spec.fringe_factor)
-        write_sumocfg(folder, duration=spec.duration, seed=spec.seed)
+        if spec.persons:
+            from .scenario.persons import write_persons
+
+            write_persons(folder, persons=spec.persons, duration=spec.duration, seed=spec.seed,
+                          departures=spec.departures)
+        write_sumocfg(folder, duration=spec.duration, seed=spec.seed, persons=spec.persons > 0)
     if spec.ego_routes:
         with stage(f"{spec.ego_routes} ego routes of {spec.ego_length:g} m ...", "ego_routes"):
             import sumolib

@@ -26,6 +26,7 @@ RULES = ("de", "us", "priority")
 DEFAULT_RULES = "de"
 LEGACY_RULES = "priority"  # of a spec or suite written before there was a choice
 DEFAULT_ONE_WAY_SHARE = 0.2
+DEFAULT_PERSONS = 0
 #: SUMO vehicle classes a demand may mix (each gets SUMO's default vType of its class), and
 #: the default mix: shares of the trips (``scenario.demand``)
 VEHICLE_CLASSES = ("passenger", "truck", "bus", "motorcycle", "bicycle", "delivery")
@@ -41,7 +42,8 @@ LEGACY_DEPARTURES = "even"
 #: spec.json and manifests leave these values unsaid, and reading supplies them, so that a
 #: suite built then rebuilds to the same bytes.
 UNSAID = {"rules": LEGACY_RULES, "vehicle_mix": LEGACY_VEHICLE_MIX,
-          "departures": LEGACY_DEPARTURES, "fringe_factor": 1.0, "one_way_share": 0.0}
+          "departures": LEGACY_DEPARTURES, "fringe_factor": 1.0, "one_way_share": 0.0,
+          "sidewalks": False, "persons": 0}
 LEGACY = {"boundary": LEGACY_BOUNDARY, **UNSAID}  # spec.json leaves the ring unsaid too
 MAX_SIDE_M = 50_000.0
 MIN_SIDE_M = 200.0
@@ -63,7 +65,7 @@ PRIOR_RANGES = {"gridness": (0.0, 1.0), "radialness": (-1.0, 1.0),
 
 # Stage ids for np.random.default_rng([seed, STAGE]): each stage draws from its own stream, so
 # changing one stage never shifts the random numbers of another.
-STAGE_SKELETON, STAGE_GROWTH, STAGE_FILL, STAGE_DEMAND = 1, 2, 4, 5
+STAGE_SKELETON, STAGE_GROWTH, STAGE_FILL, STAGE_DEMAND, STAGE_PERSONS = 1, 2, 4, 5, 6
 
 
 @dataclass(frozen=True)
@@ -82,10 +84,15 @@ class ScenarioSpec:
     rules: str = DEFAULT_RULES
     #: share of the local street length made one-way, in alternating pairs (``hdmap.one_way``)
     one_way_share: float = DEFAULT_ONE_WAY_SHARE
+    #: a sidewalk beside every driving direction, crossings at junctions (``hdmap.lanes``,
+    #: ``export.sumo_plain.crossings``)
+    sidewalks: bool = False
     duration: float = 3600.0
     #: vehicle class -> share of the trips; departure times random or evenly spread
     vehicle_mix: dict = field(default_factory=lambda: dict(DEFAULT_VEHICLE_MIX))
     departures: str = "random"
+    #: pedestrians walking over the duration (``scenario.persons``); needs sidewalks
+    persons: int = DEFAULT_PERSONS
     #: randomTrips' --fringe-factor: how much likelier trips start and end where roads leave
     #: the map (1: as likely as anywhere else of the same length)
     fringe_factor: float = 1.0
@@ -133,6 +140,14 @@ class ScenarioSpec:
         _check_number("--one-way-share", self.one_way_share)
         if not 0 <= self.one_way_share <= 1:
             raise RoadweaverError(f"--one-way-share must be 0..1, got {self.one_way_share:g}")
+        if not isinstance(self.sidewalks, bool):
+            raise RoadweaverError(f"sidewalks must be true or false, got {self.sidewalks!r}")
+        if isinstance(self.persons, bool) or not isinstance(self.persons, int) or not (
+                0 <= self.persons <= MAX_VEHICLES):
+            raise RoadweaverError(f"--persons must be a whole number 0..{MAX_VEHICLES}, got "
+                                  f"{self.persons!r}")
+        if self.persons and not self.sidewalks:
+            raise RoadweaverError("--persons needs sidewalks to walk on: add --sidewalks")
         _check_vehicle_mix(self.vehicle_mix)
         if self.departures not in DEPARTURES:
             raise RoadweaverError(f"unknown departures {self.departures!r}; choose one of "

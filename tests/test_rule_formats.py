@@ -19,11 +19,12 @@ SIGN_OF = {"traffic_light": "1000001", "stop": "206", "all_way_stop": "206", "yi
 KIND_OF_SUBTYPE = {"de206": "stop", "de205": "yield"}
 
 
-@pytest.fixture(scope="module", params=["de", "us"])
+@pytest.fixture(scope="module", params=["de", "us", "de+sidewalks"])
 def files(request, tmp_path_factory):
+    rules, _, sidewalks = request.param.partition("+")
     spec = rw.ScenarioSpec(density=30, vehicles=1, width=1000, height=1000, seed=1,
-                           skeleton="procedural", rules=request.param)
-    return rw.write_map(rw.generate_map(spec), tmp_path_factory.mktemp(request.param))
+                           skeleton="procedural", rules=rules, sidewalks=bool(sidewalks))
+    return rw.write_map(rw.generate_map(spec), tmp_path_factory.mktemp(rules))
 
 
 class Net:
@@ -33,13 +34,16 @@ class Net:
     def __init__(self, path):
         root = etree.parse(str(path)).getroot()
         self.speed = {lane.get("id"): float(lane.get("speed")) for edge in root.iter("edge")
-                      if edge.get("function") is None for lane in edge.iter("lane")}
+                      if edge.get("function") is None for lane in edge.iter("lane")
+                      if lane.get("allow") != "pedestrian"}  # sidewalks: no speed limit
         ends = {(e.get("from"), e.get("to")): e.get("id") for e in root.iter("edge")
                 if e.get("function") is None}
         self.one_way = {edge for (a, b), edge in ends.items() if (b, a) not in ends}
+        function = {e.get("id"): e.get("function") for e in root.iter("edge")}
         by_lane = defaultdict(list)
-        for c in root.iter("connection"):
-            if not c.get("from").startswith(":"):
+        for c in root.iter("connection"):  # link indices count pedestrians' links as sumolib
+            into, out_of = function[c.get("to")], function[c.get("from")]
+            if into != "walkingarea" and (out_of != "walkingarea" or into == "crossing"):
                 by_lane[f"{c.get('from')}_{c.get('fromLane')}"].append(c)
         states, self.lit_lanes, self.yields = defaultdict(set), defaultdict(set), {}
         for junction in root.iter("junction"):
@@ -50,11 +54,14 @@ class Net:
             keys = [(f"{c.get('from')}_{c.get('fromLane')}", f"{c.get('to')}_{c.get('toLane')}")
                     for c in links]
             for k, (c, key) in enumerate(zip(links, keys, strict=True)):
+                if key[0].startswith(":") or key[1].startswith(":"):
+                    continue  # a pedestrian's link
                 states[c.get("from")].add("tl" if c.get("tl") else c.get("state"))
                 if c.get("tl"):
                     self.lit_lanes[c.get("from")].add(key[0])
                 bits = responses[k] if k < len(responses) else ""
-                self.yields[key] = {keys[j] for j in range(len(bits)) if bits[-(j + 1)] == "1"}
+                self.yields[key] = {keys[j] for j in range(len(bits)) if bits[-(j + 1)] == "1"
+                                    and not keys[j][0].startswith(":")}
         self.control = {}
         for edge, seen in states.items():
             kind = ("traffic_light" if "tl" in seen else "all_way_stop" if "w" in seen
@@ -89,7 +96,7 @@ class Xodr:
                 ids = range(int(validity.get("fromLane")), int(validity.get("toLane")) + 1)
                 self.signal_lanes[edge] = {self.sumo_lane(rid, k) for k in ids}
             for lane in road.iterfind("lanes/laneSection/*/lane"):
-                if lane.get("id") != "0":
+                if lane.get("type") == "driving":
                     self.speed[self.sumo_lane(rid, int(lane.get("id")))] = float(
                         lane.find("speed").get("max"))
         self.link = {}  # connecting road id -> (from SUMO lane, to SUMO lane)

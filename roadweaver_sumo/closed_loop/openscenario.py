@@ -24,6 +24,7 @@ from pathlib import Path
 from lxml import etree
 
 from ..scenario.xmlfile import write_xml
+from .routes import car_lanes
 
 FILE = "ego_route_{k}.xosc"
 MAP_FILE = "map.xodr"
@@ -48,10 +49,13 @@ def write_openscenario(folder: Path, routes: list[dict], net) -> list[str]:
 
 
 def lane_position(net, edge_id: str, lengths: dict[str, float], s_share: float = 0.5,
-                  lane_index: int = 0) -> etree._Element:
+                  lane_index: int | None = None) -> etree._Element:
     """The ``<Position><LanePosition>`` of a point ``s_share`` along the road of SUMO edge
-    ``edge_id``, on its lane ``lane_index`` (0: right-most)."""
+    ``edge_id``, on its lane ``lane_index`` (SUMO's index; None: the right-most driving
+    lane)."""
     road, direction = edge_id[1:].rsplit("_", 1)
+    if lane_index is None:
+        lane_index = car_lanes(net.getEdge(edge_id))[0].getIndex()
     rank = net.getEdge(edge_id).getLaneNumber() - lane_index  # 1: next to the reference line
     along = s_share * lengths[road] if direction == "f" else (1 - s_share) * lengths[road]
     position = etree.Element("Position")
@@ -131,11 +135,11 @@ def _stop_trigger(stop: etree._Element, length: float, end: etree._Element) -> N
 
 
 def _route_lanes(net, edges: list[str]) -> list[tuple[int, int]]:
-    """Per route edge, the lane the ego enters it on and the lane it leaves it from (lane
-    indices, 0 the right-most): it keeps its lane where that lane leads on, else it changes to
+    """Per route edge, the lane the ego enters it on and the lane it leaves it from (SUMO's
+    lane indices; it starts on the right-most driving lane): it keeps its lane where that lane leads on, else it changes to
     the right-most lane that does. Players such as esmini find their way between waypoints
     lane by lane and change lanes only when told."""
-    lanes, entered = [], 0
+    lanes, entered = [], car_lanes(net.getEdge(edges[0]))[0].getIndex()
     for edge, after in pairwise(edges):
         links = net.getEdge(edge).getOutgoing()[net.getEdge(after)]
         usable = sorted(c.getFromLane().getIndex() for c in links)

@@ -78,7 +78,7 @@ def situations(net, edge_ids: list[str]) -> dict[str, int]:
         if not links:
             continue
         found[f"{DIRECTION.get(links[0].getDirection(), 'other')}@{a.getToNode().getType()}"] += 1
-        if len({c.getFromLane().getIndex() for c in links}) < a.getLaneNumber():
+        if len({c.getFromLane().getIndex() for c in links}) < len(car_lanes(a)):
             found["lane_change_for_turn"] += 1
     return dict(sorted(found.items()))
 
@@ -107,7 +107,7 @@ def write_ego_routes(folder: Path, routes: list[dict], net) -> None:
 
 def write_carla_routes(path: Path, routes: list[dict], net) -> None:
     """The routes in CARLA Leaderboard's route format: a ``position`` in the middle of each
-    route edge's right-most lane, in CARLA's frame for ``map.xodr`` (CARLA turns OpenDRIVE's y
+    route edge's right-most driving lane, in CARLA's frame for ``map.xodr`` (CARLA turns OpenDRIVE's y
     round: y = -y; our SUMO net and map.xodr share x and y). ``town`` is ``map``: load
     ``map.xodr`` as a standalone OpenDRIVE world."""
     from sumolib.geomhelper import positionAtShapeOffset
@@ -117,10 +117,16 @@ def write_carla_routes(path: Path, routes: list[dict], net) -> None:
         element = etree.SubElement(root, "route", id=str(k), town="map")
         waypoints = etree.SubElement(element, "waypoints")
         for edge in route["edges"]:
-            lane = net.getEdge(edge).getLane(0)
+            lane = car_lanes(net.getEdge(edge))[0]
             x, y = positionAtShapeOffset(lane.getShape(), lane.getLength() / 2)
             etree.SubElement(waypoints, "position", x=f"{x:.3f}", y=f"{-y:.3f}", z="0.0")
     write_xml(root, path)
+
+
+def car_lanes(edge) -> list:
+    """The lanes of a sumolib edge that cars may drive, right-most first (a sidewalk is lane
+    0 where the road has one)."""
+    return [lane for lane in edge.getLanes() if lane.allows("passenger")]
 
 
 def read_ego_routes(folder: Path) -> list[dict]:

@@ -32,7 +32,7 @@ def write_map_files(hd: HDMap, folder: Path, template: str = "urban",
     with timed("export ...", "export"):
         write_plain(hd, folder / PLAIN_DIR)
     with timed("netconvert ...", "netconvert"):
-        net = run_netconvert(folder, template)
+        net = run_netconvert(folder, template, walkingareas=bool(hd.sidewalks))
     with timed("OpenDRIVE and lanelet2 with SUMO's right of way ...", "formats"):
         attach_right_of_way(hd, net)
         write_opendrive(hd, folder / XODR_FILE)

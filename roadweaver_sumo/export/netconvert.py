@@ -44,15 +44,16 @@ def available_templates() -> list[str]:
     return sorted(f.name.removesuffix(".netccfg") for f in files if f.name.endswith(".netccfg"))
 
 
-def fill_template(template: str) -> str:
-    """The text of template ``template`` with the plain-XML inputs and net output filled in."""
+def fill_template(template: str, walkingareas: bool = False) -> str:
+    """The text of template ``template`` with the plain-XML inputs, the net output and
+    whether to build walking areas (on maps with sidewalks) filled in."""
     source = template_dir().joinpath(f"{template}.netccfg")
     if not source.is_file():
         choices = ", ".join(available_templates())
         raise RoadweaverError(f"unknown netconvert template {template!r}; choose one of: {choices}")
     try:
         return Template(source.read_text(encoding="utf-8")).substitute(
-            PLAIN_FILES, output_file=NET_NAME)
+            PLAIN_FILES, output_file=NET_NAME, walkingareas=str(walkingareas).lower())
     except (KeyError, ValueError) as err:
         msg = f"netconvert template {template!r} has a bad placeholder: {err}"
         raise RoadweaverError(msg) from None
@@ -77,9 +78,9 @@ def _run(out_dir: Path) -> None:
             raise RoadweaverError(f"netconvert failed: {errors[0]}") from None
 
 
-def run_netconvert(out_dir: Path, template: str = "urban") -> Path:
+def run_netconvert(out_dir: Path, template: str = "urban", walkingareas: bool = False) -> Path:
     """Build ``out_dir/map.net.xml`` from ``out_dir/plain/`` with the named template (twice
-    where cars would wait in a foe's path, below).
+    where cars would wait in a foe's path, below); ``walkingareas`` on maps with sidewalks.
 
     Raises RoadweaverError (one line) when a plain file is missing, the template is unknown or
     netconvert fails; ``--ignore-errors`` is never used, so a net is complete or not written.
@@ -88,7 +89,7 @@ def run_netconvert(out_dir: Path, template: str = "urban") -> Path:
     missing = [p for p in PLAIN_FILES.values() if not (out_dir / p).is_file()]
     if missing:
         raise RoadweaverError(f"cannot run netconvert: {out_dir / missing[0]} does not exist")
-    (out_dir / CONFIG_NAME).write_text(fill_template(template), encoding="utf-8")
+    (out_dir / CONFIG_NAME).write_text(fill_template(template, walkingareas), encoding="utf-8")
     net = out_dir / NET_NAME
     net.unlink(missing_ok=True)  # never return a net left over from an earlier run
     _run(out_dir)

@@ -40,7 +40,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from ..hdmap.model import HDMap, Lane, Road
+from ..hdmap.model import HDMap, Lane, Road, edge_id
 from ..hdmap.reference import Piece
 from ..hdmap.right_of_way import approach_control, approaches
 from ..projection import tmerc
@@ -114,10 +114,11 @@ def junction_ids(hd: HDMap) -> dict[int, int]:
 
 def xodr_lane_id(hd: HDMap, lane: Lane) -> int:
     """OpenDRIVE lane id: ``f`` lanes right (``-1`` innermost), ``b`` lanes left (``1``
-    innermost); a connector is lane ``-1`` of its connecting road."""
+    innermost), a sidewalk outermost; a connector is lane ``-1`` of its connecting road."""
     if lane.kind == "connector":
         return -1
-    inner_rank = len(hd.roads[lane.road].lanes(lane.direction)) - lane.index
+    road = hd.roads[lane.road]
+    inner_rank = len(road.lanes(lane.direction)) + bool(road.sidewalk_width) - lane.index
     return -inner_rank if lane.direction == "f" else inner_rank
 
 
@@ -218,25 +219,34 @@ def _lanes(hd: HDMap, road: Road) -> list[str]:
     innermost (id -1) first (descending ids)."""
     solid = road.road_class == "arterial" or road.one_way
     centre = _element(5, "lane", {"id": 0, "type": "none"}, _mark("solid" if solid else "broken"))
-    section = [*(_side(hd, "left", road.lanes("b")) if road.lanes("b") else []),
+    walks = {d: [edge_id(road.id, d) + "_0"] if road.sidewalk_width else [] for d in "fb"}
+    section = [*(_side(hd, "left", walks["b"] + road.lanes("b")) if road.lanes("b") else []),
                *_element(4, "center", {}, centre),
-               *_side(hd, "right", reversed(road.lanes("f")))]
-    offset = []  # a one-way road's lanes are centred on the reference line
+               *_side(hd, "right", [*reversed(road.lanes("f")), *walks["f"]])]
+    offset = []  # a one-way road's lanes and sidewalk are centred on the reference line
     if road.one_way:
-        offset = _element(3, "laneOffset", {"s": 0.0, "a": len(road.lanes("f")) * road.lane_width
-                                            / 2.0, "b": 0.0, "c": 0.0, "d": 0.0})
+        width = len(road.lanes("f")) * road.lane_width + road.sidewalk_width
+        offset = _element(3, "laneOffset", {"s": 0.0, "a": width / 2.0, "b": 0.0, "c": 0.0,
+                                            "d": 0.0})
     return _element(2, "lanes", {}, [*offset,
                                      *_element(3, "laneSection", {"s": 0.0}, section)])
 
 
 def _side(hd: HDMap, tag: str, lane_ids) -> list[str]:
-    """``<left>`` or ``<right>`` with its lanes: constant width, the outer road mark, speed
-    limit. No ``<link>``: the road ends in junctions at both ends (rule
-    road.lane.link.no_link)."""
+    """``<left>`` or ``<right>`` with its lanes: constant width, the outer road mark (solid
+    on the outermost driving lane), speed limit; a sidewalk (type ``sidewalk``) its width. No
+    ``<link>``: the road ends in junctions at both ends (rule road.lane.link.no_link)."""
     lanes = []
-    for lane in map(hd.lanes.__getitem__, lane_ids):
+    for lane_id in lane_ids:
+        if lane_id in hd.sidewalks:
+            lane = hd.sidewalks[lane_id]
+            lanes += _element(5, "lane", {"id": xodr_lane_id(hd, lane), "type": "sidewalk"},
+                              _width(float(lane.width), 0.0))
+            continue
+        lane = hd.lanes[lane_id]
         lanes += _element(5, "lane", {"id": xodr_lane_id(hd, lane), "type": "driving"},
-                          _lane_records(float(lane.width), lane.index == 0, float(lane.speed)))
+                          _lane_records(float(lane.width), lane.right_neighbour is None,
+                                        float(lane.speed)))
     return _element(4, tag, {}, lanes)
 
 

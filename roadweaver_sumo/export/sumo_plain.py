@@ -104,6 +104,7 @@ def plain_edges(hd: HDMap) -> etree._Element:
                 "speed": _num(road.speed),
                 "width": _num(road.lane_width),
                 "spreadType": "center" if road.one_way else "right",
+                **({"sidewalkWidth": _num(road.sidewalk_width)} if road.sidewalk_width else {}),
                 "shape": " ".join(line),
             })
     return root
@@ -145,7 +146,31 @@ def plain_connections(hd: HDMap) -> etree._Element:
         if parallel[src, dst] > 1:
             connection.set("changeLeft", NO_LANE_CHANGE)
             connection.set("changeRight", NO_LANE_CHANGE)
+    for node, edges in crossings(hd):
+        etree.SubElement(root, "crossing", node=node_id(node), edges=" ".join(edges),
+                         priority="1")
     return root
+
+
+def crossings(hd: HDMap) -> list[tuple[int, list[str]]]:
+    """A pedestrian crossing over every road at every junction of three or more roads, on
+    maps with sidewalks: (node, the road's SUMO edges).
+
+    Pedestrians on them have priority over vehicles (``priority="1"``, a zebra), as turning
+    traffic must let people on the crossing go first (StVO §9(3)); at traffic lights the
+    lights rule. netconvert's own guess gave the crossings over main roads no priority, and
+    SUMO's drivers, once stopped at a stop sign, then drove into people who had started to
+    cross (5 collisions with 600 people in half an hour on a 1 km map; 1 with these)."""
+    found = []
+    for jid in sorted(hd.junctions):
+        junction = hd.junctions[jid]
+        if len(junction.roads) < 3:
+            continue
+        for rid in junction.roads:
+            road = hd.roads[rid]
+            if road.sidewalk_width:
+                found.append((jid, [edge_id(rid, d) for d in DIRECTIONS if road.lanes(d)]))
+    return found
 
 
 PLAIN_FILES = {"map.nod.xml": plain_nodes, "map.edg.xml": plain_edges,

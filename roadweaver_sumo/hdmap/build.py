@@ -6,7 +6,7 @@ import networkx as nx
 
 from .control import DEFAULT_RULES
 from .junctions import add_connectors, folding_turns, make_junctions
-from .lanes import build_road_lanes, lane_ends, make_roads, plan_reference_lines
+from .lanes import SIDEWALK_WIDTH, build_road_lanes, lane_ends, make_roads, plan_reference_lines
 from .model import HDMap, Road
 from .movements import junction_plan
 from .one_way import choose_one_way
@@ -22,7 +22,7 @@ WIDEN_FACTOR, WIDEN_ROUNDS, BAN_ROUNDS = 1.25, 4, 3
 
 def build_hdmap(
     G: nx.Graph, geo_origin: tuple[float, float] | None = None, *, traffic_lights: bool = True,
-    rules: str = DEFAULT_RULES, one_way_share: float = 0.0,
+    rules: str = DEFAULT_RULES, one_way_share: float = 0.0, sidewalks: bool = False,
 ) -> HDMap:
     """Build the lane-level HD map of a RoadGraph (paper Algorithm 1).
 
@@ -30,7 +30,8 @@ def build_hdmap(
     geo-reference; by default ``G.graph["geo_origin"]`` if present. Junction control follows
     the regional ``rules`` (``control.RULES``); ``traffic_lights=False`` leaves out the lights
     (suburban maps). Up to ``one_way_share`` of the local street length becomes one-way
-    (``one_way``).
+    (``one_way``). ``sidewalks``: every road gets a sidewalk of ``SIDEWALK_WIDTH`` right of
+    each driving direction.
     RepairLaneGeometry needs no pass of its own: connectors end exactly on the lanes they join
     and junction trims leave every road a lane section (see ``lanes.MAX_TRIM_SHARE``).
     """
@@ -40,7 +41,8 @@ def build_hdmap(
         geo_origin=geo_origin if geo_origin is not None else G.graph.get("geo_origin"),
         graph=G,
     )
-    hd.roads = make_roads(G)  # RefineRoadGraph, AssignLaneConfig
+    sidewalk_width = SIDEWALK_WIDTH if sidewalks else 0.0
+    hd.roads = make_roads(G, sidewalk_width)  # RefineRoadGraph, AssignLaneConfig
     choose_one_way(G, hd.roads, one_way_share)
     nodes = {n: G.nodes[n]["xy"] for n in G.nodes}
     hd.junctions = make_junctions(nodes, hd.roads, traffic_lights, rules)
@@ -76,7 +78,9 @@ def _lanes_and_connectors(hd: HDMap, roads: list[Road], junctions: list[int],
     plan_reference_lines(roads, [(hd.junctions[road.from_node].radius,
                                   hd.junctions[road.to_node].radius) for road in roads])
     for road in roads:  # GenerateLaneBoundaries, ConstructDirectionalLanes
-        hd.lanes.update((lane.id, lane) for lane in build_road_lanes(road))
+        lanes, sidewalks = build_road_lanes(road)
+        hd.lanes.update((lane.id, lane) for lane in lanes)
+        hd.sidewalks.update((lane.id, lane) for lane in sidewalks)
     for node in junctions:
         for lane_id in hd.junctions[node].connectors:
             del hd.lanes[lane_id]

@@ -3,7 +3,8 @@ AssignLaneConfig, GenerateLaneBoundaries, ConstructDirectionalLanes).
 
 Right-hand traffic: lanes driving along the reference line lie right of it, the others left of
 it; a two-way road has the same lane count in both directions, a one-way road
-(``one_way``) its lanes centred on the reference line.
+(``one_way``) its lanes centred on the reference line. A road with sidewalks has one right of
+each driving direction, lane index 0 as in SUMO; its driving lanes are then 1..n.
 """
 
 from __future__ import annotations
@@ -48,6 +49,7 @@ LANE_CONFIGS: dict[str, LaneConfig] = {
     "local": LaneConfig(lanes=1, width=3.0, speed=8.33, priority=1),
 }
 
+SIDEWALK_WIDTH = 2.0  # m, SUMO's default sidewalk width
 MIN_TURN_RADIUS = 5.0  # m: cars turn on 5 m or more (pyxodr fails on arcs under ~1.5 m)
 BEND_MARGIN = 1.0  # m: radius left to a lane edge on the inside of the tightest bend
 
@@ -67,8 +69,9 @@ END_STRAIGHT = 3.0
 END_BEND = 10.0
 
 
-def make_roads(G: nx.Graph) -> dict[int, Road]:
-    """One road per RoadGraph edge with its class's lane configuration (AssignLaneConfig).
+def make_roads(G: nx.Graph, sidewalk_width: float = 0.0) -> dict[int, Road]:
+    """One road per RoadGraph edge with its class's lane configuration (AssignLaneConfig) and
+    sidewalks ``sidewalk_width`` wide (0: none).
 
     Roads are numbered in sorted node-pair order so ids do not depend on insertion order;
     centrelines lose zero-length segments (RefineRoadGraph: geometric regularisation).
@@ -88,6 +91,7 @@ def make_roads(G: nx.Graph) -> dict[int, Road]:
             speed=cfg.speed,
             lane_width=cfg.width,
             sections=[],
+            sidewalk_width=sidewalk_width,
         )
     return roads
 
@@ -98,7 +102,7 @@ def plan_reference_lines(roads: list[Road], trims: list[tuple[float, float]]) ->
     RefineRoadGraph), all roads in one batch. The centreline is cut back by the trims, with
     no vertex within ``END_STRAIGHT`` of a cut end, and its corners filleted with arcs of at
     least the class's ``min_radius``."""
-    radii = [LANE_CONFIGS[road.road_class].min_radius for road in roads]
+    radii = [LANE_CONFIGS[road.road_class].min_radius + road.sidewalk_width for road in roads]
     cuts = []
     for road, (trim_start, trim_end) in zip(roads, trims, strict=True):
         length = float(arc_lengths(road.centreline)[-1])
@@ -118,7 +122,9 @@ def plan_reference_lines(roads: list[Road], trims: list[tuple[float, float]]) ->
             plans[k], lines[k] = plan, line
     for road, (s0, s1, _), line, plan in zip(roads, cuts, lines, plans, strict=True):
         n = LANE_CONFIGS[road.road_class].lanes
-        ids = {d: [road_lane_id(road.id, d, k) for k in range(n)] for d in _directions(road)}
+        first = _first_lane(road)
+        ids = {d: [road_lane_id(road.id, d, first + k) for k in range(n)]
+               for d in _directions(road)}
         ids.setdefault("b", [])
         road.sections = [LaneSection(s0, s1, ids["f"], ids["b"])]
         road.plan = plan
@@ -155,43 +161,66 @@ def _past_end_bends(plan: list[Piece], least: float, s0: float, s1: float,
     return s0, s1
 
 
-def build_road_lanes(road: Road) -> list[Lane]:
+def build_road_lanes(road: Road) -> tuple[list[Lane], list[Lane]]:
     """Offset a road's reference line (:func:`plan_reference_lines`) into lane boundaries and
-    build the directional lanes of both driving directions."""
+    build the directional lanes of its driving directions, and its sidewalks (one right of
+    each direction, if the road has them)."""
     n = LANE_CONFIGS[road.road_class].lanes
     points, tangents = road.reference
-    both = offset_along(points, tangents,
-                        _lane_offsets(road.road_class, road.one_way)[:, None])
-    lines = {"f": both[: 2 * n + 1], "b": both[2 * n + 1 :, ::-1]}
-    return [lane for d in _directions(road)
-            for lane in _directional_lanes(road, d, lines[d][: n + 1], lines[d][n + 1 :])]
+    offsets = _lane_offsets(road.road_class, road.one_way, road.sidewalk_width)
+    lines = offset_along(points, tangents, offsets[:, None])
+    directions = _directions(road)
+    size = len(offsets) // len(directions)  # lines per direction
+    lanes, sidewalks = [], []
+    for k, d in enumerate(directions):
+        part = lines[k * size : (k + 1) * size]
+        if d == "b":  # offset left of the reference line: reversed into driving direction
+            part = part[:, ::-1]
+        lanes += _directional_lanes(road, d, part[: n + 1], part[n + 1 : 2 * n + 1])
+        if road.sidewalk_width:
+            sidewalks.append(_sidewalk(road, d, inner=part[0], outer=part[2 * n + 1],
+                                       centre=part[2 * n + 2]))
+    return lanes, sidewalks
 
 
 def _directions(road: Road) -> str:
     return "f" if road.one_way else "fb"
 
 
+def _first_lane(road: Road) -> int:
+    """Index of a driving direction's outermost driving lane: 1 beside a sidewalk (index 0,
+    as SUMO numbers an edge's lanes), else 0."""
+    return 1 if road.sidewalk_width else 0
+
+
 @cache
-def _lane_offsets(road_class: str, one_way: bool = False) -> np.ndarray:
-    """Left offsets of a road's lines from its reference line: first those of its ``f`` lanes,
-    then the same to the left for its ``b`` lanes (one array for one offsetting call); a
-    one-way road's ``f`` lanes are centred on the reference line and it has no ``b`` lanes."""
+def _lane_offsets(road_class: str, one_way: bool = False, sidewalk: float = 0.0) -> np.ndarray:
+    """Left offsets of a road's lines from its reference line: first those of its ``f`` lanes
+    (boundaries, centres, then the sidewalk's outer edge and centre), then the same to the
+    left for its ``b`` lanes (one array for one offsetting call). A one-way road has no ``b``
+    lanes, and its cross-section (lanes and sidewalk) is centred on the reference line."""
     cfg = LANE_CONFIGS[road_class]
     n, w = cfg.lanes, cfg.width
-    # distances right of the driving direction: boundary j at (n - j) lane widths (j = 0 the
-    # outermost, j = n the reference line itself), then lane k's centre at (n - k - 0.5) widths
-    right = w * np.concatenate([np.arange(n, -1, -1), np.arange(n, 0, -1) - 0.5])
+    # how far right of the driving direction the cross-section's left edge lies: the
+    # reference line itself, or half the cross-section left of it on a one-way road
+    start = -(n * w + sidewalk) / 2.0 if one_way else 0.0
+    # boundary j at (n - j) lane widths right of that edge (j = 0 the outermost), then lane
+    # k's centre at (n - k - 0.5) widths
+    right = start + w * np.concatenate([np.arange(n, -1, -1), np.arange(n, 0, -1) - 0.5])
+    if sidewalk:
+        right = np.concatenate([right, start + n * w + np.array([sidewalk, sidewalk / 2.0])])
     if one_way:
-        return -(right - n * w / 2.0)
+        return -right
     return np.concatenate([-right, right])
 
 
 def _directional_lanes(road: Road, direction: str, bounds: np.ndarray, centres: np.ndarray):
-    """The lanes of one driving direction, index 0 the outermost, from their boundaries and
+    """The lanes of one driving direction, the outermost first, from their boundaries and
     centres (all in driving direction), with neighbour links between them."""
     cfg = LANE_CONFIGS[road.road_class]
     n, w = cfg.lanes, cfg.width
-    ids = [road_lane_id(road.id, direction, k) for k in range(n)]
+    first = _first_lane(road)
+    ids = [road_lane_id(road.id, direction, first + k) for k in range(n)]
     return [
         Lane(
             id=ids[k],
@@ -205,12 +234,21 @@ def _directional_lanes(road: Road, direction: str, bounds: np.ndarray, centres: 
             right=bounds[k],
             road=road.id,
             direction=direction,
-            index=k,
+            index=first + k,
             left_neighbour=ids[k + 1] if k + 1 < n else None,
             right_neighbour=ids[k - 1] if k > 0 else None,
         )
         for k in range(n)
     ]
+
+
+def _sidewalk(road: Road, direction: str, inner: np.ndarray, outer: np.ndarray,
+              centre: np.ndarray) -> Lane:
+    """The sidewalk right of a driving direction: lane index 0, beside the outermost lane."""
+    return Lane(id=road_lane_id(road.id, direction, 0), kind="sidewalk",
+                road_class=road.road_class, width=road.sidewalk_width,
+                end_width=road.sidewalk_width, speed=road.speed, centre=centre, left=inner,
+                right=outer, road=road.id, direction=direction, index=0)
 
 
 @dataclass

@@ -7,7 +7,8 @@ Conventions shared by all exporters, so that none of them re-derives topology:
 * A road has two *driving directions*, written ``f`` (along the reference line) and ``b``
   (against it); ``edge_id(road, "f")`` is ``"r7_f"``, the SUMO edge id of that direction.
 * Lanes are right-hand traffic: ``f`` lanes lie right of the reference line, ``b`` lanes left of it.
-  Within a direction, index 0 is the rightmost (outermost) lane, like SUMO's lane index; a road
+  Within a direction, index 0 is the rightmost (outermost) lane, like SUMO's lane index: the
+  sidewalk where the road has one (driving lanes 1..n), else the outermost driving lane; a road
   lane's id is ``"<edge id>_<index>"``, which is also its SUMO lane id.
 * Every polyline (lane centre and boundaries) runs in the lane's driving direction.
 * Junction *connector lanes* (``"j12_3"``) join one incoming lane's end to one outgoing lane's
@@ -104,6 +105,8 @@ class Road:
     #: one-way roads (``hdmap.one_way``) run along their reference line: ``f`` lanes only,
     #: centred on it
     one_way: bool = False
+    #: m; 0: no sidewalks. A sidewalk lies right of each driving direction (``HDMap.sidewalks``)
+    sidewalk_width: float = 0.0
     #: lines and arcs of the reference line within the lane section (``hdmap.reference``)
     plan: list = field(default_factory=list)
     #: ``plan`` sampled: the points the lanes are offset from and their unit tangents
@@ -144,6 +147,9 @@ class HDMap:
     roads: dict[int, Road] = field(default_factory=dict)
     junctions: dict[int, Junction] = field(default_factory=dict)
     lanes: dict[str, Lane] = field(default_factory=dict)
+    #: sidewalks (``kind="sidewalk"``, index 0 of their direction), apart from the lane graph
+    #: of vehicles: pedestrians cross junctions on SUMO's crossings and walking areas
+    sidewalks: dict[str, Lane] = field(default_factory=dict)
     geo_origin: tuple[float, float] | None = None  # (lat, lon) of the local origin (0, 0)
     graph: Any = field(default=None, repr=False)  # the RoadGraph (networkx) it was built from
 

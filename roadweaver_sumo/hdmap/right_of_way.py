@@ -33,7 +33,7 @@ APPROACH_CONTROLS = ("traffic_light", "all_way_stop", "stop", "yield")
 def read_links(net_path: Path) -> dict[tuple[str, str], dict]:
     """Every link of ``net_path`` between two normal lanes, keyed by (from lane, to lane):
     ``state``, ``tl`` (the traffic light's id or None), ``junction`` and ``prohibitors`` (the
-    keys of the links it must yield to)."""
+    keys of the vehicle links it must yield to; pedestrians on crossings are left out)."""
     connections = defaultdict(list)  # from lane -> its connections' attributes, file order
     junctions = []  # (junction id, incoming lanes, response strings)
     functions = {}  # edge id -> function (internal, walkingarea, crossing) of special edges
@@ -59,7 +59,8 @@ def read_links(net_path: Path) -> dict[tuple[str, str], dict]:
                 continue  # a pedestrian link: not a vehicle's right of way
             bits = responses[index] if index < len(responses) else ""
             prohibitors = [indexed[k]["key"] for k in range(len(bits))
-                           if bits[-(k + 1)] == "1" and k < len(indexed)]
+                           if bits[-(k + 1)] == "1" and k < len(indexed)
+                           and not (indexed[k]["from_function"] or indexed[k]["to_function"])]
             links[link["key"]] = {"state": link["state"], "tl": link["tl"],
                                   "junction": junction, "prohibitors": prohibitors}
     return links

@@ -12,6 +12,7 @@ from lxml import etree
 
 from ..errors import RoadweaverError
 from .demand import DEMAND_FILE
+from .persons import PERSONS_FILE
 from .xmlfile import write_xml
 
 SUMOCFG_FILE = "scenario.sumocfg"
@@ -31,16 +32,19 @@ def end_time(duration: float) -> float:
     return float(duration) + END_MARGIN_S
 
 
-def write_sumocfg(out_dir: Path, *, duration: float, seed: int) -> Path:
+def write_sumocfg(out_dir: Path, *, duration: float, seed: int, persons: bool = False) -> Path:
     """Write ``out_dir/scenario.sumocfg`` (deterministic bytes) and return its path.
 
     Collisions only warn (and are counted in the statistics) so a validation run sees all of
-    them; junction collisions are checked too, because that is where bad geometry shows.
+    them; junction collisions are checked too, because that is where bad geometry shows (and
+    where cars meet pedestrians on crossings). ``persons``: the walks of ``persons.rou.xml``
+    are loaded too.
     """
     if duration <= 0:
         raise RoadweaverError(f"sumocfg: duration must be > 0 s, got {duration}")
     sections = {
-        "input": {"net-file": NET_FILE, "route-files": DEMAND_FILE},
+        "input": {"net-file": NET_FILE,
+                  "route-files": f"{DEMAND_FILE},{PERSONS_FILE}" if persons else DEMAND_FILE},
         "time": {"begin": "0", "end": _number(end_time(duration))},
         "processing": {
             "time-to-teleport": str(TIME_TO_TELEPORT_S),

@@ -39,6 +39,8 @@ class SuiteSpec:
     boundary: str = "ring"
     rules: str = LEGACY_RULES
     one_way_share: float = 0.0
+    sidewalks: bool = False
+    persons: int = 0
     vehicle_mix: dict = field(default_factory=lambda: dict(LEGACY_VEHICLE_MIX))
     departures: str = LEGACY_DEPARTURES
     fringe_factor: float = 1.0
@@ -68,7 +70,8 @@ class SuiteSpec:
             ScenarioSpec(density=d, vehicles=self.vehicles, width=self.width, height=self.height,
                          seed=s, style=style, skeleton=self.skeleton, duration=self.duration,
                          boundary=self.boundary, rules=self.rules,
-                         one_way_share=self.one_way_share,
+                         one_way_share=self.one_way_share, sidewalks=self.sidewalks,
+                         persons=self.persons,
                          vehicle_mix=dict(self.vehicle_mix), departures=self.departures,
                          fringe_factor=self.fringe_factor,
                          ego_routes=self.ego_routes,

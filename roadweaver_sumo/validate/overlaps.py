@@ -22,15 +22,20 @@ from .netgraph import road_edges
 #: count; an overlap of less than this is not one a driver would notice either.
 SLACK = 0.1  # metres
 MIN_AREA = 0.5  # m²: shapely's last-bit slivers between outlines that share a rim
+PEDESTRIAN_ONLY = frozenset({"pedestrian"})  # a sidewalk's permissions
 RIM = 1.0  # metres beyond an HD map junction's trim radius where lane ends' corners may meet
 
 
 def net_overlaps(net: sumolib.net.Net) -> list[tuple[str, str]]:
     """Pairs of edges (ids, sorted; the two directions of one road never pair) whose lane
-    outlines overlap outside the shapes of the junctions at their ends."""
+    outlines overlap outside the shapes of the junctions at their ends. Lanes for vehicles
+    only: sidewalks of two roads meeting at an acute angle run into each other before the
+    junction, as paved corners do (pedestrians walk on either)."""
     outlines, owners = [], []
     for edge in road_edges(net):
         for lane in edge.getLanes():
+            if lane.getPermissions() <= PEDESTRIAN_ONLY:
+                continue
             outlines.append(_outline(lane.getShape(), lane.getWidth()))
             owners.append(edge)
     junction_area = {node.getID(): _junction_area(node) for node in net.getNodes()}

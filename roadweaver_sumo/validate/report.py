@@ -40,6 +40,7 @@ class Threshold(NamedTuple):
     op: str  # ">=", "<=" or "=="
     limit: float | bool
     what: str
+    optional: bool = False  # judged only where the report has the figure (pedestrians)
 
 
 THRESHOLDS: tuple[Threshold, ...] = (
@@ -51,6 +52,8 @@ THRESHOLDS: tuple[Threshold, ...] = (
     Threshold("net.alignment.mean", "<=", 0.05, "mean lane-end gap at junctions (m)"),
     Threshold("simulation.arrived_ratio", ">=", 0.99, "share of vehicles that arrived"),
     Threshold("simulation.teleport_ratio", "<=", 0.01, "teleports per vehicle"),
+    Threshold("simulation.persons_arrived_ratio", ">=", 0.99,
+              "share of pedestrians that arrived", optional=True),
     Threshold("simulation.collisions", "<=", 0, "collisions"),
     Threshold("simulation.routing_success_rate", ">=", 0.995, "share of routing tasks solved"),
     Threshold("simulation.completed", "==", True, "simulation finished within its wall cap"),
@@ -89,6 +92,8 @@ def validate_scenario(
     vehicles = spec["vehicles"]
     sim["arrived_ratio"] = sim["arrived"] / vehicles
     sim["teleport_ratio"] = sim["teleports_total"] / vehicles
+    if spec["persons"]:
+        sim["persons_arrived_ratio"] = sim["persons_arrived"] / spec["persons"]
     scenario = {k: spec[k] for k in ("width", "height", "seed", "vehicles", "duration")}
     scenario.update(area_km2=area_km2, end_s=end_time(spec["duration"]))
     report = _with_verdict({"scenario": scenario, "net": net_figures, "simulation": sim})
@@ -114,6 +119,7 @@ def read_spec(out_dir: Path) -> dict:
             "seed": int(spec["seed"]),
             "vehicles": int(spec["vehicles"]),
             "duration": float(spec["duration"]),
+            "persons": int(spec.get("persons", 0)),
         }
     except FileNotFoundError:
         raise RoadweaverError(f"{path} not found; is {out_dir} a scenario folder?") from None
@@ -132,6 +138,8 @@ def check_thresholds(report: dict) -> list[str]:
     failures = []
     for t in THRESHOLDS:
         value = _lookup(report, t.figure)
+        if value is None and t.optional:
+            continue
         if value is None:
             failures.append(f"{t.figure} ({t.what}) is missing from the report")
         elif not _OPS[t.op](value, t.limit):
@@ -178,6 +186,8 @@ def summary_lines(report: dict) -> list[str]:
             f" {sim['collisions']} collisions{f' ({sites})' if sites else ''},"
             f" {ending} at {sim['sim_end_s']:g} s"
         ),
+        *([(f"pedestrians: {sim['persons_arrived']}/{sim['persons_loaded']} arrived, "
+            f"{sim['persons_jammed']} jammed")] if sim.get("persons_loaded") else []),
         (
             f"trips: mean travel {sim['mean_travel_time_s']:.1f} s,"
             f" waiting {sim['mean_waiting_time_s']:.1f} s; routing success"

@@ -25,8 +25,9 @@ APPROACH_RULES = {"O": "signalised", "o": "signalised", "G": "signalised", "g": 
 
 def rule_coverage(net: sumolib.net.Net) -> dict:
     """Junctions by control (SUMO node type; places where at least three roads meet), turns
-    into junctions by the rule that governs them, one-way road edges, the speed limits in
-    km/h and the speed-limit changes where a road goes straight on into one of another limit."""
+    into junctions by the rule that governs them, one-way road edges, pedestrian crossings
+    (at lights, or zebras where pedestrians go first), the speed limits in km/h and the
+    speed-limit changes where a road goes straight on into one of another limit."""
     controls = Counter(node.getType() for node in road_junctions(net)
                        if len(_neighbours(node)) >= 3)
     approaches: Counter = Counter()
@@ -41,9 +42,12 @@ def rule_coverage(net: sumolib.net.Net) -> dict:
             changes += straight and round(edge.getSpeed() * 3.6) != round(after.getSpeed() * 3.6)
     pairs = {(e.getFromNode().getID(), e.getToNode().getID()) for e in road_edges(net)}
     one_way = sum((b, a) not in pairs for a, b in pairs)
+    crossings = Counter("signalised" if e.getFromNode().getType() == "traffic_light" else "zebra"
+                        for e in net.getEdges(withInternal=True) if e.getFunction() == "crossing")
     return {"junction_controls": dict(sorted(controls.items())),
             "turns_by_rule": dict(sorted(approaches.items())),
             "one_way_edges": one_way,
+            "pedestrian_crossings": dict(sorted(crossings.items())),
             "speed_limits_kmh": sorted({round(e.getSpeed() * 3.6) for e in road_edges(net)}),
             "speed_limit_changes": changes}
 
@@ -100,5 +104,6 @@ def rule_lines(rules: dict) -> list[str]:
 
     turns = (f"turns by rule: {counts(rules['turns_by_rule'])}; one-way edges "
              f"{rules['one_way_edges']}; speed limits {rules['speed_limits_kmh']} km/h, "
-             f"{rules['speed_limit_changes']} changes")
+             f"{rules['speed_limit_changes']} changes; pedestrian crossings "
+             f"{counts(rules.get('pedestrian_crossings', {}))}")
     return [f"junction controls: {counts(rules['junction_controls'])}", turns]

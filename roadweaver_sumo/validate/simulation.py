@@ -256,7 +256,8 @@ def _allows_cars(libsumo, edge: str) -> bool:
 def _read_statistics(path: Path) -> dict:
     """The figures we report from SUMO's ``--statistic-output`` file. SUMO counts bicycles
     apart (``bikeTripStatistics``): they arrive like any vehicle; the trip means are those of
-    the motor vehicles."""
+    the motor vehicles. Pedestrians: loaded, arrived (walks completed), jammed (teleported
+    past a blocked sidewalk or crossing)."""
     root = etree.parse(str(path)).getroot()
 
     def number(tag: str, attr: str) -> float:
@@ -275,6 +276,9 @@ def _read_statistics(path: Path) -> dict:
         "teleports_yield": int(number("teleports", "yield")),
         "teleports_wrong_lane": int(number("teleports", "wrongLane")),
         "collisions": int(number("safety", "collisions")),
+        "persons_loaded": int(number("persons", "loaded")),
+        "persons_arrived": int(number("pedestrianStatistics", "number")),
+        "persons_jammed": int(number("persons", "jammed")),
         "emergency_stops": int(number("safety", "emergencyStops")),
         "mean_travel_time_s": number("vehicleTripStatistics", "duration"),
         "mean_waiting_time_s": number("vehicleTripStatistics", "waitingTime"),

@@ -1,0 +1,98 @@
+"""Sidewalks, crossings and pedestrians (``--sidewalks``, ``--persons``): a sidewalk lane 0
+beside every driving direction in the HD map, SUMO and OpenDRIVE; a crossing over every road
+at junctions of three or more roads; walks that SUMO routes and completes."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from lxml import etree
+from shapely.geometry import LineString
+from test_one_way import local_grid
+
+from roadweaver_sumo.cli import main
+from roadweaver_sumo.export.map_files import write_map_files
+from roadweaver_sumo.hdmap import build_hdmap, hdmap_metrics
+from roadweaver_sumo.hdmap.lanes import LANE_CONFIGS, SIDEWALK_WIDTH
+from roadweaver_sumo.validate.netgraph import load_net
+
+
+@pytest.fixture(scope="module")
+def hd():
+    return build_hdmap(local_grid(), (48.137, 11.575), one_way_share=0.4, sidewalks=True)
+
+
+@pytest.fixture(scope="module")
+def files(hd, tmp_path_factory):
+    return write_map_files(hd, tmp_path_factory.mktemp("sidewalks"))
+
+
+def test_every_driving_direction_has_a_sidewalk_outside_its_lanes(hd):
+    assert hdmap_metrics(hd)["strongly_connected"], "the vehicles' lane graph is untouched"
+    for road in hd.roads.values():
+        n = LANE_CONFIGS[road.road_class].lanes
+        for direction in ("f", "b"):
+            lanes = road.lanes(direction)
+            if not lanes:
+                assert f"r{road.id}_{direction}_0" not in hd.sidewalks  # a one-way road
+                continue
+            assert [hd.lanes[lane].index for lane in lanes] == list(range(1, n + 1))
+            walk = hd.sidewalks[f"r{road.id}_{direction}_0"]
+            assert walk.kind == "sidewalk" and walk.width == SIDEWALK_WIDTH
+            outer = hd.lanes[lanes[0]]
+            assert np.allclose(walk.left, outer.right), "the sidewalk adjoins the outer lane"
+            gap = LineString(walk.centre).distance(LineString(outer.centre))
+            assert gap == pytest.approx((outer.width + walk.width) / 2, abs=0.01)
+
+
+def test_sumo_has_the_sidewalks_crossings_and_walking_areas(hd, files):
+    net = load_net(files["sumo"])
+    for lane_id, walk in hd.sidewalks.items():
+        lane = net.getLane(lane_id)
+        assert lane.getPermissions() == {"pedestrian"}
+        assert lane.getWidth() == pytest.approx(walk.width)
+    root = etree.parse(str(files["sumo"])).getroot()
+    crossings = {e.get("id").split("_")[0][1:] for e in root.iter("edge")
+                 if e.get("function") == "crossing"}
+    busy = {f"n{j.id}" for j in hd.junctions.values() if len(j.roads) >= 3}
+    assert crossings == busy
+    walking = {e.get("id").split("_")[0][1:] for e in root.iter("edge")
+               if e.get("function") == "walkingarea"}
+    assert busy < walking, "walking areas join sidewalks at two-road nodes too"
+
+
+def test_opendrive_carries_the_sidewalks_carla_finds_them(hd, files):
+    root = etree.parse(str(files["opendrive"])).getroot()
+    sidewalks = [lane for lane in root.iter("lane") if lane.get("type") == "sidewalk"]
+    assert len(sidewalks) == len(hd.sidewalks)
+    carla = pytest.importorskip("carla")
+    carla_map = carla.Map("sidewalks", files["opendrive"].read_text())
+    for walk in list(hd.sidewalks.values())[:20]:
+        x, y = walk.centre[len(walk.centre) // 2]
+        w = carla_map.get_waypoint(carla.Location(x, -y, 0.0), lane_type=carla.LaneType.Sidewalk)
+        assert w.lane_type == carla.LaneType.Sidewalk
+        assert w.transform.location.distance(carla.Location(x, -y, 0.0)) < walk.width / 2
+
+
+def test_pedestrians_walk_on_them_to_their_end(tmp_path):
+    out = tmp_path / "walk"
+    code = main(["make-scenario", "--density", "30", "--vehicles", "60", "--size", "800",
+                 "--duration", "600", "--skeleton", "procedural", "--sidewalks", "--persons",
+                 "40", "--out", str(out)])
+    report = json.loads((out / "report.json").read_text())
+    sim = report["simulation"]
+    assert (sim["persons_loaded"], sim["persons_arrived"]) == (40, 40)
+    assert sim["persons_arrived_ratio"] == 1.0 and sim["persons_jammed"] == 0
+    assert code == (0 if report["passed"] else 1)
+    people = etree.parse(str(out / "persons.rou.xml")).getroot().findall("person")
+    assert [p.get("id") for p in people] == [f"ped{i}" for i in range(40)]
+    assert "persons.rou.xml" in (out / "scenario.sumocfg").read_text()
+
+
+def test_persons_without_sidewalks_is_a_one_line_error(tmp_path, capsys):
+    assert main(["make-scenario", "--density", "30", "--vehicles", "10", "--persons", "5",
+                 "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--persons needs sidewalks" in err[0]
