@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 from lxml import etree
-from shapely.geometry import LineString
+from shapely.geometry import LineString, Point, Polygon
 from test_one_way import local_grid
 
 from roadweaver_sumo.cli import main
@@ -74,6 +74,48 @@ def test_opendrive_carries_the_sidewalks_carla_finds_them(hd, files):
         w = carla_map.get_waypoint(carla.Location(x, -y, 0.0), lane_type=carla.LaneType.Sidewalk)
         assert w.lane_type == carla.LaneType.Sidewalk
         assert w.transform.location.distance(carla.Location(x, -y, 0.0)) < walk.width / 2
+
+
+def test_opendrive_crosswalks_are_sumos_crossings_and_carla_reads_them(hd, files):
+    root = etree.parse(str(files["sumo"])).getroot()
+    crossings = {}
+    for edge in root.iter("edge"):
+        if edge.get("function") == "crossing":
+            lane = edge.find("lane")
+            crossings[edge.get("id")] = (LineString([tuple(map(float, p.split(",")))
+                                                     for p in lane.get("shape").split()]),
+                                         float(lane.get("width")))
+    objects = {o.get("id"): o for o in etree.parse(str(files["opendrive"])).getroot()
+               .iter("object") if o.get("type") == "crosswalk"}
+    assert set(objects) == set(crossings) and crossings
+    for cid, obj in objects.items():
+        road = obj.getparent().getparent()
+        crossed = root.find(f"edge[@id='{cid}']").get("crossingEdges").split()
+        assert {f"r{road.get('id')}_{d}" for d in "fb"} >= set(crossed)
+    carla = pytest.importorskip("carla")
+    points = carla.Map("sidewalks", files["opendrive"].read_text()).get_crosswalks()
+    assert len(points) == 4 * len(crossings)
+    expected = {}  # object id -> (true centre, CARLA's offset from it)
+    for cid, obj in objects.items():
+        road = hd.roads[int(obj.getparent().getparent().get("id"))]
+        # CARLA 0.9.16 places objects from the lane-offset line, not from the reference line
+        # (OpenDRIVE 1.7, "Objects": t is measured from the reference line): on a one-way
+        # road, half its cross-section off (docs/opendrive.md)
+        half = (road.lane_width * len(road.lanes("f")) + road.sidewalk_width) / 2
+        expected[cid] = (crossings[cid][0].centroid, half if road.one_way else 0.0)
+    shifted = 0
+    for k in range(0, len(points), 4):
+        corners = [(p.x, -p.y) for p in points[k:k + 4]]  # CARLA's y runs the other way
+        centre = Polygon(corners).centroid
+        cid = min(expected, key=lambda c: abs(expected[c][0].distance(centre) - expected[c][1]))
+        true, offset = expected.pop(cid)
+        assert true.distance(centre) == pytest.approx(offset, abs=0.01)
+        shifted += offset > 0
+        line, width = crossings[cid]
+        for corner in corners:  # each corner half the crossing's width from its centre line
+            assert line.distance(Point(corner)) == pytest.approx(width / 2, abs=0.01) or offset
+    assert not expected
+    assert shifted < len(crossings) / 2
 
 
 def test_pedestrians_walk_on_them_to_their_end(tmp_path):

@@ -12,6 +12,7 @@ from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
 
+from ..hdmap.crossings import read_crossings
 from ..hdmap.model import HDMap
 from ..hdmap.right_of_way import attach_right_of_way
 from .lanelet2 import write_lanelet2
@@ -35,6 +36,7 @@ def write_map_files(hd: HDMap, folder: Path, template: str = "urban",
         net = run_netconvert(folder, template, walkingareas=bool(hd.sidewalks))
     with timed("OpenDRIVE and lanelet2 with SUMO's right of way ...", "formats"):
         attach_right_of_way(hd, net)
+        hd.crosswalks = read_crossings(net)
         write_opendrive(hd, folder / XODR_FILE)
         write_lanelet2(hd, folder / LANELET2_FILE)
     return {"plain": folder / PLAIN_DIR, "sumo": folder / NET_NAME,

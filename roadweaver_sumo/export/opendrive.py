@@ -88,10 +88,14 @@ def opendrive_lines(hd: HDMap) -> Iterator[list[str]]:
     connecting = connecting_road_ids(hd)
     junctions = junction_ids(hd)
     signals, controllers = _signals(hd)
+    crosswalks = defaultdict(list)
+    for crosswalk in hd.crosswalks:
+        crosswalks[crosswalk.road].append(crosswalk)
     connectors = hd.connectors()
     return itertools.chain(
         [_header(hd)],
-        (_road(hd, hd.roads[rid], signals.get(rid, []), junctions) for rid in sorted(hd.roads)),
+        (_road(hd, hd.roads[rid], signals.get(rid, []), junctions, crosswalks.get(rid, []))
+         for rid in sorted(hd.roads)),
         (_connecting_road(hd, lane, piece, connecting[lane.id], junctions[lane.junction])
          for lane, piece in zip(connectors, _connector_pieces(connectors), strict=True)),
         controllers,
@@ -189,9 +193,10 @@ def _plan_view(pieces: list[Piece]) -> list[str]:
     return _element(2, "planView", {}, lines)
 
 
-def _road(hd: HDMap, road: Road, signals: list, junctions: dict[int, int]) -> list[str]:
+def _road(hd: HDMap, road: Road, signals: list, junctions: dict[int, int],
+          crosswalks: list = ()) -> list[str]:
     """A road between two junctions (their ids ``junctions``): its two driving directions as
-    right and left lanes."""
+    right and left lanes, the crosswalks over it, its signals."""
     ends = [(tag, node) for tag, node in (("predecessor", road.from_node),
                                           ("successor", road.to_node))
             if hd.junctions[node].connectors]  # a junction without connectors is not written
@@ -200,6 +205,9 @@ def _road(hd: HDMap, road: Road, signals: list, junctions: dict[int, int]) -> li
                                           "elementId": junctions[node]})]
     children = [*(_element(2, "link", {}, link) if link else []),
                 *_type(road.road_class, road.speed), *_plan_view(road.plan), *_lanes(hd, road)]
+    if crosswalks:
+        children += _element(2, "objects", {}, [line for crosswalk in crosswalks
+                                                for line in _crosswalk(road, crosswalk)])
     if signals:
         children += _element(2, "signals", {}, [line for signal in signals for line in signal])
     return _element(1, "road", _road_attributes(road.id, f"r{road.id}", -1, road.plan), children)
@@ -334,6 +342,27 @@ def _junction(hd: HDMap, node: int, jid: int, connecting: dict[str, int]) -> lis
     if any(hd.lanes[c].traffic_light for c in junction.connectors):
         children += _element(2, "controller", {"id": node, "type": "0", "sequence": 0})
     return _element(1, "junction", {"id": jid, "name": f"n{node}", "type": "default"}, children)
+
+
+def _crosswalk(road: Road, crosswalk) -> list[str]:
+    """A crosswalk ``<object>`` with SUMO's outline of the crossing (``hdmap.crossings``) as
+    ``cornerLocal`` points (the outline CARLA reads), anchored on the reference line at the
+    road's end nearest to it: the crossing lies in the junction, beyond the lanes' end."""
+    points, tangents = road.reference
+    centre = crosswalk.outline.mean(axis=0)
+    at_end = np.hypot(*(points[-1] - centre)) < np.hypot(*(points[0] - centre))
+    origin, ahead = (points[-1], tangents[-1]) if at_end else (points[0], tangents[0])
+    left = np.array([-ahead[1], ahead[0]])
+    corners = [_element(5, "cornerLocal", {"id": k, "u": float((p - origin) @ ahead),
+                                            "v": float((p - origin) @ left), "z": 0.0,
+                                            "height": 0.0})
+               for k, p in enumerate(crosswalk.outline)]
+    length = sum(p.length for p in road.plan)
+    return _element(3, "object", {"id": crosswalk.id, "name": crosswalk.id, "type": "crosswalk",
+                                  "s": length if at_end else 0.0, "t": 0.0, "zOffset": 0.0,
+                                  "hdg": 0.0, "orientation": "none"},
+                    _element(4, "outline", {"id": 0, "closed": "true"},
+                             [line for corner in corners for line in corner]))
 
 
 def _signals(hd: HDMap) -> tuple[dict[int, list[list[str]]], list[list[str]]]:

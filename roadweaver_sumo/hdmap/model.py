@@ -150,6 +150,8 @@ class HDMap:
     #: sidewalks (``kind="sidewalk"``, index 0 of their direction), apart from the lane graph
     #: of vehicles: pedestrians cross junctions on SUMO's crossings and walking areas
     sidewalks: dict[str, Lane] = field(default_factory=dict)
+    #: pedestrian crossings as SUMO built them (``hdmap.crossings``), once through netconvert
+    crosswalks: list = field(default_factory=list)
     geo_origin: tuple[float, float] | None = None  # (lat, lon) of the local origin (0, 0)
     graph: Any = field(default=None, repr=False)  # the RoadGraph (networkx) it was built from
 
