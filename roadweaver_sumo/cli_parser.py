@@ -15,6 +15,7 @@ from . import __version__
 from .errors import RoadweaverError
 from .spec import (
     BOUNDARIES,
+    DEFAULT_BUS_LINES,
     DEFAULT_EGO_LENGTH_M,
     DEFAULT_GEO_ORIGIN,
     DEFAULT_ONE_WAY_SHARE,
@@ -22,6 +23,7 @@ from .spec import (
     DEFAULT_RULES,
     DEFAULT_VEHICLE_MIX,
     DEPARTURES,
+    MAX_BUS_LINES,
     MAX_DENSITY,
     MAX_DURATION_S,
     MAX_EGO_LENGTH_M,
@@ -221,7 +223,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_rule_and_demand_options(parser: argparse.ArgumentParser) -> None:
-    """``--rules``, ``--one-way-share``, ``--sidewalks``, ``--persons``, ``--vehicle-mix``,
+    """``--rules``, ``--one-way-share``, ``--sidewalks``, ``--persons``, ``--bus-lines``,
+    ``--vehicle-mix``,
     ``--departures`` and ``--fringe-factor``: the same for
     a scenario and for every scenario of a suite."""
     parser.add_argument("--rules", default=DEFAULT_RULES, metavar=_choices(RULES),
@@ -234,6 +237,10 @@ def _add_rule_and_demand_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--persons", type=_number(int, 0, MAX_VEHICLES), default=DEFAULT_PERSONS,
                         help="pedestrians walking 100-1000 m (at most 2.5 km on foot) on the "
                              "sidewalks over --duration; needs --sidewalks")
+    parser.add_argument("--bus-lines", type=_number(int, 0, MAX_BUS_LINES),
+                        default=DEFAULT_BUS_LINES,
+                        help="bus lines across the map along its main roads, both ways, a bus "
+                             "every 10 minutes, stops every 400 m")
     parser.add_argument("--vehicle-mix", default=DEFAULT_MIX_TEXT, help=MIX_HELP)
     parser.add_argument("--departures", default="random", metavar=_choices(DEPARTURES),
                         help=DEPARTURES_HELP)

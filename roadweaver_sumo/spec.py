@@ -27,13 +27,14 @@ DEFAULT_RULES = "de"
 LEGACY_RULES = "priority"  # of a spec or suite written before there was a choice
 DEFAULT_ONE_WAY_SHARE = 0.2
 DEFAULT_PERSONS = 0
+DEFAULT_BUS_LINES, MAX_BUS_LINES = 1, 4
 #: SUMO vehicle classes a demand may mix (each gets SUMO's default vType of its class), and
 #: the default mix: shares of the trips (``scenario.demand``)
 VEHICLE_CLASSES = ("passenger", "truck", "bus", "motorcycle", "bicycle", "delivery")
 #: Trucks and bicycles only on request: at a tight right-before-left junction SUMO lets a car
 #: or a creeping bicycle go while a turning truck's body still fills the junction (a junction
 #: collision in about one of 50 town scenarios with 5 % trucks).
-DEFAULT_VEHICLE_MIX = {"passenger": 0.95, "motorcycle": 0.05}
+DEFAULT_VEHICLE_MIX = {"passenger": 0.9, "motorcycle": 0.05, "bicycle": 0.05}
 LEGACY_VEHICLE_MIX = {"passenger": 1.0}
 MAX_FRINGE_FACTOR = 1000.0
 DEPARTURES = ("random", "even")  # uniform random times (randomTrips --random-depart), evenly
@@ -43,7 +44,7 @@ LEGACY_DEPARTURES = "even"
 #: suite built then rebuilds to the same bytes.
 UNSAID = {"rules": LEGACY_RULES, "vehicle_mix": LEGACY_VEHICLE_MIX,
           "departures": LEGACY_DEPARTURES, "fringe_factor": 1.0, "one_way_share": 0.0,
-          "sidewalks": False, "persons": 0}
+          "sidewalks": False, "persons": 0, "bus_lines": 0}
 LEGACY = {"boundary": LEGACY_BOUNDARY, **UNSAID}  # spec.json leaves the ring unsaid too
 MAX_SIDE_M = 50_000.0
 MIN_SIDE_M = 200.0
@@ -93,6 +94,8 @@ class ScenarioSpec:
     departures: str = "random"
     #: pedestrians walking over the duration (``scenario.persons``); needs sidewalks
     persons: int = DEFAULT_PERSONS
+    #: bus lines across the map with stops (``scenario.bus_lines``)
+    bus_lines: int = DEFAULT_BUS_LINES
     #: randomTrips' --fringe-factor: how much likelier trips start and end where roads leave
     #: the map (1: as likely as anywhere else of the same length)
     fringe_factor: float = 1.0
@@ -148,6 +151,10 @@ class ScenarioSpec:
                                   f"{self.persons!r}")
         if self.persons and not self.sidewalks:
             raise RoadweaverError("--persons needs sidewalks to walk on: add --sidewalks")
+        if isinstance(self.bus_lines, bool) or not isinstance(self.bus_lines, int) or not (
+                0 <= self.bus_lines <= MAX_BUS_LINES):
+            raise RoadweaverError(f"--bus-lines must be a whole number 0..{MAX_BUS_LINES}, got "
+                                  f"{self.bus_lines!r}")
         _check_vehicle_mix(self.vehicle_mix)
         if self.departures not in DEPARTURES:
             raise RoadweaverError(f"unknown departures {self.departures!r}; choose one of "

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from lxml import etree
 
 from roadweaver_sumo.cli import main
 from roadweaver_sumo.sumo_tools import binary, strip_generated_comment
@@ -16,6 +17,7 @@ ARGS = ["make-scenario", "--density", "30", "--vehicles", "60", "--size", "800",
 EXPECTED_FILES = {
     "scenario.sumocfg", "map.net.xml", "demand.rou.xml", "spec.json", "report.json",
     "netconvert.netccfg", "timing.json", "plain", "map.xodr", "lanelet2_map.osm", "preview.png",
+    "bus_lines.rou.xml", "bus_stops.add.xml",
 }
 
 
@@ -37,7 +39,9 @@ def test_scenario_folder_is_complete_and_passes(scenario):
     assert net["lcc_ratio"] == 1.0 and net["crossings_without_junction"] == 0
     assert net["lane_reachability"] >= 0.995
     assert net["alignment"]["mean"] <= 0.05
-    assert sim["loaded"] == 60 and sim["arrived"] >= 59 and sim["collisions"] == 0
+    buses = 2 * report["generation"]["bus_lines"]["lines"]  # one from each end within 300 s
+    assert sim["loaded"] == 60 + buses and sim["arrived"] >= 59 + buses
+    assert sim["collisions"] == 0
     assert report["generation"]["hdmap"]["strongly_connected"]
 
 
@@ -65,7 +69,10 @@ def test_sumocfg_runs_with_sumo_from_any_directory(scenario, tmp_path):
                           cwd=tmp_path, capture_output=True, text=True, timeout=120, check=False)
     assert proc.returncode == 0, proc.stderr
     vehicles = proc.stdout.split("Vehicles:")[1]
-    assert "Inserted: 60" in vehicles and "Running: 0" in vehicles and "Waiting: 0" in vehicles
+    buses = len(etree.parse(str(scenario / "bus_lines.rou.xml")).getroot().findall("route"))
+    inserted = 60 + buses  # one bus leaves each end of a line at 0 s (the next after 600 s)
+    assert f"Inserted: {inserted}" in vehicles and "Running: 0" in vehicles
+    assert "Waiting: 0" in vehicles
 
 
 def test_netconvert_reproduces_the_net_from_the_written_template(scenario, tmp_path):

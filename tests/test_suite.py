@@ -11,7 +11,8 @@ from roadweaver_sumo.cli import main
 from roadweaver_sumo.suite import MANIFEST_FILE
 
 SUITE_ARGS = ["make-suite", "--densities", "20,30", "--styles", "grid", "--seeds", "0",
-              "--size", "500", "--vehicles", "15", "--duration", "60", "--skeleton", "procedural"]
+              "--size", "500", "--vehicles", "15", "--duration", "60", "--skeleton", "procedural",
+              "--bus-lines", "0"]
 NAMES = ["grid-d20-500x500-s0-v15", "grid-d30-500x500-s0-v15"]
 
 

@@ -11,6 +11,8 @@ from pathlib import Path
 from lxml import etree
 
 from ..errors import RoadweaverError
+from .bus_lines import ROUTES_FILE as BUS_ROUTES_FILE
+from .bus_lines import STOPS_FILE as BUS_STOPS_FILE
 from .demand import DEMAND_FILE
 from .persons import PERSONS_FILE
 from .xmlfile import write_xml
@@ -32,19 +34,22 @@ def end_time(duration: float) -> float:
     return float(duration) + END_MARGIN_S
 
 
-def write_sumocfg(out_dir: Path, *, duration: float, seed: int, persons: bool = False) -> Path:
+def write_sumocfg(out_dir: Path, *, duration: float, seed: int, persons: bool = False,
+                  buses: bool = False) -> Path:
     """Write ``out_dir/scenario.sumocfg`` (deterministic bytes) and return its path.
 
     Collisions only warn (and are counted in the statistics) so a validation run sees all of
     them; junction collisions are checked too, because that is where bad geometry shows (and
     where cars meet pedestrians on crossings). ``persons``: the walks of ``persons.rou.xml``
-    are loaded too.
+    are loaded too; ``buses``: the bus lines and their stops.
     """
     if duration <= 0:
         raise RoadweaverError(f"sumocfg: duration must be > 0 s, got {duration}")
     sections = {
         "input": {"net-file": NET_FILE,
-                  "route-files": f"{DEMAND_FILE},{PERSONS_FILE}" if persons else DEMAND_FILE},
+                  "route-files": ",".join([DEMAND_FILE] + [PERSONS_FILE] * persons
+                                          + [BUS_ROUTES_FILE] * buses),
+                  **({"additional-files": BUS_STOPS_FILE} if buses else {})},
         "time": {"begin": "0", "end": _number(end_time(duration))},
         "processing": {
             "time-to-teleport": str(TIME_TO_TELEPORT_S),

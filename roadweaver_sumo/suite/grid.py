@@ -41,6 +41,7 @@ class SuiteSpec:
     one_way_share: float = 0.0
     sidewalks: bool = False
     persons: int = 0
+    bus_lines: int = 0
     vehicle_mix: dict = field(default_factory=lambda: dict(LEGACY_VEHICLE_MIX))
     departures: str = LEGACY_DEPARTURES
     fringe_factor: float = 1.0
@@ -71,7 +72,7 @@ class SuiteSpec:
                          seed=s, style=style, skeleton=self.skeleton, duration=self.duration,
                          boundary=self.boundary, rules=self.rules,
                          one_way_share=self.one_way_share, sidewalks=self.sidewalks,
-                         persons=self.persons,
+                         persons=self.persons, bus_lines=self.bus_lines,
                          vehicle_mix=dict(self.vehicle_mix), departures=self.departures,
                          fringe_factor=self.fringe_factor,
                          ego_routes=self.ego_routes,

@@ -89,7 +89,7 @@ def validate_scenario(
             net_figures = net_metrics(net_path, area_km2)
             timing["net_metrics_s"] = time.perf_counter() - t0
         sim, sim_timing = finish_simulation()
-    vehicles = spec["vehicles"]
+    vehicles = max(spec["vehicles"], sim["loaded"])  # with the buses of the bus lines
     sim["arrived_ratio"] = sim["arrived"] / vehicles
     sim["teleport_ratio"] = sim["teleports_total"] / vehicles
     if spec["persons"]:
@@ -181,7 +181,7 @@ def summary_lines(report: dict) -> list[str]:
         ),
         *(rule_lines(net["rules"])[:1] if "rules" in net else []),
         (
-            f"simulation: {sim['arrived']}/{sc['vehicles']} arrived"
+            f"simulation: {sim['arrived']}/{max(sim['loaded'], sc['vehicles'])} arrived"
             f" ({100 * sim['arrived_ratio']:.1f} %), {sim['teleports_total']} teleports,"
             f" {sim['collisions']} collisions{f' ({sites})' if sites else ''},"
             f" {ending} at {sim['sim_end_s']:g} s"
