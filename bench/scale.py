@@ -11,8 +11,8 @@ ten times a second takes a share of a core, and the timed runs (ours and netgene
 not sampled;
 netgenerate --rand gets the iterations that give it our road-node count as ``evaluate``
 counts them (one untimed calibration run per size);
-"generation" is skeleton + expansion + hdmap + export (our files written), "total" adds
-netconvert and demand. Validation is not timed. Quality figures all come from ``evaluate``.
+"generation" is skeleton + expansion + hdmap + export + formats (our files written: the plain
+XML, and OpenDRIVE and lanelet2 after netconvert), "total" adds netconvert and demand. Validation is not timed. Quality figures all come from ``evaluate``.
 CPU contention (a training job, the load average) is recorded, since it inflates every time.
 """
 
@@ -30,8 +30,8 @@ import threading
 import time
 from pathlib import Path
 
-STAGES = ("skeleton", "expansion", "hdmap", "export", "netconvert", "demand")
-GENERATION = ("skeleton", "expansion", "hdmap", "export")
+STAGES = ("skeleton", "expansion", "hdmap", "export", "netconvert", "formats", "demand")
+GENERATION = ("skeleton", "expansion", "hdmap", "export", "formats")
 QUALITY = ("road_nodes", "density", "lcc_ratio", "dead_end_ratio", "cycle_ratio",
            "crossings_without_junction", "sharp_bends", "bearing_entropy", "orientation_order",
            "lane_reachability", "junction_reachability")
