@@ -154,8 +154,12 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
             from .scenario.bus_lines import write_bus_lines
 
             generation["bus_lines"] = write_bus_lines(folder, spec.bus_lines, spec.duration)
+        from .scenario.signal_plans import coordinate_lights
+
+        generation["traffic_lights"] = coordinate_lights(folder)
         write_sumocfg(folder, duration=spec.duration, seed=spec.seed, persons=spec.persons > 0,
-                      buses=spec.bus_lines > 0)
+                      buses=spec.bus_lines > 0,
+                      coordinated=generation["traffic_lights"]["coordinated"] > 0)
     if spec.ego_routes:
         with stage(f"{spec.ego_routes} ego routes of {spec.ego_length:g} m ...", "ego_routes"):
             import sumolib

@@ -15,6 +15,7 @@ from .bus_lines import ROUTES_FILE as BUS_ROUTES_FILE
 from .bus_lines import STOPS_FILE as BUS_STOPS_FILE
 from .demand import DEMAND_FILE
 from .persons import PERSONS_FILE
+from .signal_plans import OFFSETS_FILE
 from .xmlfile import write_xml
 
 SUMOCFG_FILE = "scenario.sumocfg"
@@ -35,21 +36,23 @@ def end_time(duration: float) -> float:
 
 
 def write_sumocfg(out_dir: Path, *, duration: float, seed: int, persons: bool = False,
-                  buses: bool = False) -> Path:
+                  buses: bool = False, coordinated: bool = False) -> Path:
     """Write ``out_dir/scenario.sumocfg`` (deterministic bytes) and return its path.
 
     Collisions only warn (and are counted in the statistics) so a validation run sees all of
     them; junction collisions are checked too, because that is where bad geometry shows (and
     where cars meet pedestrians on crossings). ``persons``: the walks of ``persons.rou.xml``
-    are loaded too; ``buses``: the bus lines and their stops.
+    are loaded too; ``buses``: the bus lines and their stops; ``coordinated``: the lights'
+    green-wave offsets.
     """
     if duration <= 0:
         raise RoadweaverError(f"sumocfg: duration must be > 0 s, got {duration}")
+    additional = ",".join([BUS_STOPS_FILE] * buses + [OFFSETS_FILE] * coordinated)
     sections = {
         "input": {"net-file": NET_FILE,
                   "route-files": ",".join([DEMAND_FILE] + [PERSONS_FILE] * persons
                                           + [BUS_ROUTES_FILE] * buses),
-                  **({"additional-files": BUS_STOPS_FILE} if buses else {})},
+                  **({"additional-files": additional} if additional else {})},
         "time": {"begin": "0", "end": _number(end_time(duration))},
         "processing": {
             "time-to-teleport": str(TIME_TO_TELEPORT_S),
