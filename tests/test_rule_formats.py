@@ -1,8 +1,8 @@
 """One truth, three formats (issue 36): the rules of one map read from ``map.net.xml``,
 ``map.xodr`` and ``lanelet2_map.osm`` by readers that know nothing of our HD map, matched one
 to one: the control of every approach (light, stop, all-way stop, yield), the lanes each light
-and sign governs, every "who yields to whom" pair of links, the one-way streets and each
-lane's speed limit.
+and sign governs, every "who yields to whom" pair of links, the one-way streets, the
+pedestrian crossings (on maps with sidewalks) and each lane's speed limit.
 CARLA's map API reads the same signals."""
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ class Net:
                 if e.get("function") is None}
         self.one_way = {edge for (a, b), edge in ends.items() if (b, a) not in ends}
         function = {e.get("id"): e.get("function") for e in root.iter("edge")}
+        self.crossings = {e for e, kind in function.items() if kind == "crossing"}
         by_lane = defaultdict(list)
         for c in root.iter("connection"):  # link indices count pedestrians' links as sumolib
             into, out_of = function[c.get("to")], function[c.get("from")]
@@ -77,6 +78,8 @@ class Xodr:
     def __init__(self, path):
         root = etree.parse(str(path)).getroot()
         roads = {r.get("id"): r for r in root.iter("road")}
+        self.crossings = {o.get("id") for o in root.iter("object")
+                          if o.get("type") == "crosswalk"}
         self.count = {}  # (road, side) -> lanes on that side
         for rid, road in roads.items():
             for side in ("left", "right"):
@@ -128,11 +131,16 @@ class Lanelet2:
         ways = {w.get("id"): ([nd.get("ref") for nd in w.iter("nd")],
                               {t.get("k"): t.get("v") for t in w.iter("tag")})
                 for w in root.iter("way")}
-        lanelets, elements = {}, {}
+        lanelets, elements, self.crossings = {}, {}, set()
         for rel in root.iter("relation"):
             tags = {t.get("k"): t.get("v") for t in rel.iter("tag")}
             members = [(m.get("role"), m.get("ref")) for m in rel.iter("member")]
-            (lanelets if tags["type"] == "lanelet" else elements)[rel.get("id")] = (tags, members)
+            if tags["type"] != "lanelet":
+                elements[rel.get("id")] = (tags, members)
+            elif tags["subtype"] == "road":  # the pedestrians' lanelets: below
+                lanelets[rel.get("id")] = (tags, members)
+            elif tags["subtype"] == "crosswalk":
+                self.crossings.add(tags[LANE_TAG])
         ends = {}
         for rid, (tags, members) in lanelets.items():
             bound = {role: ways[ref][0] for role, ref in members if role in ("left", "right")}
@@ -188,6 +196,7 @@ def test_the_three_formats_hold_the_same_rules(files):
     assert dict(xodr.yields) == yielding
     assert dict(osm.yields) == yielding
     assert net.one_way and xodr.one_way == net.one_way == osm.one_way
+    assert xodr.crossings == net.crossings == osm.crossings  # with --sidewalks: SUMO's
     road_lanes = {lane for lane in net.speed if not lane.startswith(":")}
     assert len(set(net.speed.values())) >= 3, "30, 40 and 50 km/h"
     for lane in road_lanes:

@@ -16,6 +16,7 @@ from roadweaver_sumo.cli import main
 from roadweaver_sumo.export.map_files import write_map_files
 from roadweaver_sumo.hdmap import build_hdmap, hdmap_metrics
 from roadweaver_sumo.hdmap.lanes import LANE_CONFIGS, SIDEWALK_WIDTH
+from roadweaver_sumo.validate.lanelet2_check import check_lanelet2, lanelet2_failures
 from roadweaver_sumo.validate.netgraph import load_net
 
 
@@ -116,6 +117,14 @@ def test_opendrive_crosswalks_are_sumos_crossings_and_carla_reads_them(hd, files
             assert line.distance(Point(corner)) == pytest.approx(width / 2, abs=0.01) or offset
     assert not expected
     assert shifted < len(crossings) / 2
+
+
+def test_lanelet2_has_walkways_and_crosswalks_that_lanelet2_routes_pedestrians_on(hd, files):
+    result = check_lanelet2(files["lanelet2"], hd.geo_origin, pairs=300)
+    assert lanelet2_failures(result) == []
+    assert result["sidewalks"] == len(hd.sidewalks)
+    assert result["crosswalks"] == len(hd.crosswalks) > 0
+    assert result["pedestrian_route_success"] == 1.0 and result["route_success"] == 1.0
 
 
 def test_pedestrians_walk_on_them_to_their_end(tmp_path):

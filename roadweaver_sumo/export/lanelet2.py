@@ -41,6 +41,7 @@ from ..projection import local_to_latlon
 from ..scenario.xmlfile import DECLARATION
 from .lanelet2_boundaries import untangle_all
 from .lanelet2_rules import RegulatoryElement, rule_elements
+from .lanelet2_walks import WalkLanelet, walk_elements
 
 GENERATOR = "roadweaver-sumo"
 LANE_TAG = "roadweaver:lane"  # the HD map lane id of a lanelet, for loaders and debugging
@@ -235,6 +236,15 @@ def _lanelet(rid: int, lane: Lane, left: int, right: int, regulatory: list[int])
     return "\n".join([_open("relation", rid), *members, *_tag_lines(tags), f"{INDENT}</relation>"])
 
 
+def _walk_lanelet(walk: WalkLanelet) -> str:
+    """A pedestrian lanelet (``export.lanelet2_walks``), walkable either way."""
+    tags = (("type", "lanelet"), ("subtype", walk.subtype), ("location", "urban"),
+            ("one_way", "no"), (LANE_TAG, walk.source))
+    return "\n".join([_open("relation", walk.id), _member("way", walk.left, "left"),
+                      _member("way", walk.right, "right"), *_tag_lines(tags),
+                      f"{INDENT}</relation>"])
+
+
 def _degrees(value: float) -> str:
     return f"{value:.{DEGREE_DECIMALS}f}"
 
@@ -273,16 +283,19 @@ def osm_elements(hd: HDMap) -> Iterator[str]:
     for element in elements:
         for lane in element.lanes:
             regulatory[lane].append(element.id)
+    walk_ways, walks = walk_elements(hd, ids)
     return itertools.chain(
         [_bounds(hd)],
         _nodes(hd, ids),
         (_way(way_ids[key], [way.first, *way.inner, way.last], way.tags)
          for key, way in plan.ways.items()),
         (_way(wid, nodes, tags) for wid, (nodes, tags) in rule_ways.items()),
+        (_way(wid, nodes, tags) for wid, (nodes, tags) in walk_ways.items()),
         (_lanelet(lanelet_ids[lane.id], lane, way_ids[plan.slots[(lane.id, "left")]],
                   way_ids[plan.slots[(lane.id, "right")]], regulatory[lane.id])
          for lane in lanes),
-        map(_regulatory, elements))
+        map(_regulatory, elements),
+        map(_walk_lanelet, walks))
 
 
 def write_lanelet2(hd: HDMap, path: Path) -> Path:

@@ -152,6 +152,8 @@ class HDMap:
     sidewalks: dict[str, Lane] = field(default_factory=dict)
     #: pedestrian crossings as SUMO built them (``hdmap.crossings``), once through netconvert
     crosswalks: list = field(default_factory=list)
+    #: walking area -> the sidewalk and crossing ends it joins (``hdmap.crossings``)
+    walking_areas: dict = field(default_factory=dict)
     geo_origin: tuple[float, float] | None = None  # (lat, lon) of the local origin (0, 0)
     graph: Any = field(default=None, repr=False)  # the RoadGraph (networkx) it was built from
 

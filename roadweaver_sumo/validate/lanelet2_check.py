@@ -70,6 +70,9 @@ def lanelet2_failures(result: dict) -> list[str]:
     if result["route_success"] < ROUTE_SUCCESS_TARGET:
         failures.append(f"only {result['route_success']:.1%} of random lanelet pairs route "
                         f"(target {ROUTE_SUCCESS_TARGET:.0%})")
+    if result.get("pedestrian_route_success", 1.0) < ROUTE_SUCCESS_TARGET:
+        failures.append(f"only {result['pedestrian_route_success']:.1%} of random sidewalk "
+                        f"pairs route for pedestrians (target {ROUTE_SUCCESS_TARGET:.0%})")
     if result["projection_max_error_m"] > PROJECTION_TOLERANCE_M:
         failures.append(f"points move {result['projection_max_error_m']:.4f} m on loading")
     return failures
@@ -89,7 +92,8 @@ def measure_lanelet2(osm: Path, origin: tuple[float, float], pairs: int = 1000,
                                           lanelet2.traffic_rules.Participants.Vehicle)
     graph = lanelet2.routing.RoutingGraph(lmap, rules)
     built = time.perf_counter()
-    lanelets = sorted(lmap.laneletLayer, key=lambda ll: ll.id)
+    lanelets = sorted((ll for ll in lmap.laneletLayer if ll.attributes["subtype"] == "road"),
+                      key=lambda ll: ll.id)
     result = {
         "ok": True,
         "load_errors": len(errors),
@@ -111,7 +115,29 @@ def measure_lanelet2(osm: Path, origin: tuple[float, float], pairs: int = 1000,
         "projection_max_error_m": _projection_error(osm, lmap, origin),
     }
     result.update(_route_pairs(graph, lanelets, pairs, seed))
+    result.update(_pedestrian_routes(lanelet2, lmap, pairs, seed))
     return result
+
+
+def _pedestrian_routes(lanelet2, lmap, pairs: int, seed: int) -> dict:
+    """On a map with sidewalks: the share of random pairs of sidewalk lanelets that
+    lanelet2's router for pedestrians (German rules) connects, walking each either way."""
+    sidewalks = sorted((ll for ll in lmap.laneletLayer if ll.attributes["subtype"] == "walkway"
+                        and ll.attributes[LANE_TAG].startswith("r")), key=lambda ll: ll.id)
+    if len(sidewalks) < 2:
+        return {}
+    rules = lanelet2.traffic_rules.create(lanelet2.traffic_rules.Locations.Germany,
+                                          lanelet2.traffic_rules.Participants.Pedestrian)
+    graph = lanelet2.routing.RoutingGraph(lmap, rules)
+    tasks = random_pairs(len(sidewalks), pairs, seed)
+    routed = 0
+    for i, j in tasks:
+        a, b = sidewalks[i], sidewalks[j]
+        routed += any(graph.getRoute(x, y) is not None
+                      for x in (a, a.invert()) for y in (b, b.invert()))
+    return {"sidewalks": len(sidewalks), "crosswalks": sum(
+                1 for ll in lmap.laneletLayer if ll.attributes["subtype"] == "crosswalk"),
+            "pedestrian_route_success": routed / max(len(tasks), 1)}
 
 
 def osm_lane_relations(osm: Path) -> dict[str, dict[str, list[str]]]:
@@ -125,8 +151,8 @@ def osm_lane_relations(osm: Path) -> dict[str, dict[str, list[str]]]:
     bounds = {}
     for rel in root.iter("relation"):
         tags = {t.get("k"): t.get("v") for t in rel.iter("tag")}
-        if tags.get("type") != "lanelet":
-            continue
+        if tags.get("type") != "lanelet" or tags.get("subtype") != "road":
+            continue  # the vehicles' lane graph (pedestrians': export.lanelet2_walks)
         if LANE_TAG not in tags:
             raise ValueError(f"lanelet {rel.get('id')} of {osm} has no {LANE_TAG} tag: "
                              "not a map written by roadweaver-sumo")

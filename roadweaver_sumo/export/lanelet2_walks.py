@@ -1,0 +1,132 @@
+"""The pedestrian network of a lanelet2 map (maps with sidewalks): walkway lanelets on the
+sidewalks, crosswalk lanelets on SUMO's crossings, and walkway lanelets across each walking
+area joining the ends SUMO joins there (``hdmap.crossings``), so that lanelet2's router for
+pedestrians finds the walks SUMO's pedestrians take.
+
+lanelet2 links lanelets by shared end points: a lanelet follows another where the other's end
+points are its start points, and pedestrians may walk a lanelet either way (``one_way=no``),
+so a lanelet across a walking area runs from one end it joins to the other, starting on the
+points where the first lanelet is left and ending on those where the second is entered.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import combinations
+
+import numpy as np
+
+from ..hdmap.model import HDMap
+
+KERB = (("type", "curbstone"), ("subtype", "low"))  # a sidewalk's road-side edge
+EDGE = (("type", "road_border"),)  # a sidewalk's outer edge
+VIRTUAL = (("type", "virtual"),)
+ZEBRA = (("type", "zebra_marking"),)
+MIDDLE_HALF_WIDTH = 1.0  # m: the middle edge of a lanelet pair across a sharp turn
+TURNS = 16  # directions tried for that edge
+ALIGN_MARGIN_M = 0.05
+
+
+@dataclass
+class WalkLanelet:
+    """A pedestrian lanelet: its id, subtype, bound ways and its id in the source map."""
+
+    id: int
+    subtype: str
+    left: int
+    right: int
+    source: str
+
+
+def walk_elements(hd: HDMap, ids) -> tuple[dict[int, tuple], list[WalkLanelet]]:
+    """The ways (way id -> (node ids, tags)) and lanelets of ``hd``'s pedestrian network;
+    ``ids`` is the file's id counter (``export.lanelet2._Ids``)."""
+    ways: dict[int, tuple] = {}
+    ends: dict[tuple[str, str], tuple[int, int]] = {}  # (lanelet, end) -> (left, right) node
+    lanelets = []
+
+    def way(points, tags) -> tuple[int, list[int]]:
+        first = ids.nodes(points)
+        nodes = list(range(first, first + len(points)))
+        wid = ids.new()
+        ways[wid] = (nodes, tags)
+        return wid, nodes
+
+    def lanelet(source, subtype, left_points, right_points, left_tags, right_tags) -> None:
+        left, left_nodes = way(left_points, left_tags)
+        right, right_nodes = way(right_points, right_tags)
+        ends[source, "start"] = (left_nodes[0], right_nodes[0])
+        ends[source, "end"] = (left_nodes[-1], right_nodes[-1])
+        lanelets.append(WalkLanelet(ids.new(), subtype, left, right, source))
+
+    for lane_id in sorted(hd.sidewalks):
+        walk = hd.sidewalks[lane_id]
+        lanelet(lane_id, "walkway", walk.left, walk.right, KERB, EDGE)
+    for crossing in hd.crosswalks:
+        a, b = crossing.centre[0], crossing.centre[-1]
+        ahead = (b - a) / np.hypot(*(b - a))
+        side = np.array([-ahead[1], ahead[0]]) * crossing.width / 2
+        lanelet(crossing.id, "crosswalk", [a + side, b + side], [a - side, b - side],
+                ZEBRA, ZEBRA)
+    def connector(source: str, start: tuple[int, int], end: tuple[int, int]) -> None:
+        wids = []
+        for nodes in ([start[0], end[0]], [start[1], end[1]]):
+            wid = ids.new()
+            ways[wid] = (nodes, VIRTUAL)
+            wids.append(wid)
+        lanelets.append(WalkLanelet(ids.new(), "walkway", *wids, source))
+
+    for area, ports in hd.walking_areas.items():
+        known = [(kind, source, end) for kind, source, end in ports if (source, end) in ends]
+        for k, (first, second) in enumerate(combinations(known, 2)):
+            start, end = _leaving(ends, first), _entering(ends, second)
+            if _aligned(ids, start, end):
+                connector(f"{area}_{k}", start, end)
+                continue
+            middle = _middle_edge(ids, start, end)  # a turn too sharp for one lanelet
+            connector(f"{area}_{k}a", start, middle)
+            connector(f"{area}_{k}b", middle, end)
+    return ways, lanelets
+
+
+def _aligned(ids, start: tuple[int, int], end: tuple[int, int]) -> bool:
+    """Whether lanelet2 reads a lanelet from edge ``start`` to edge ``end`` (node pairs
+    (left, right)) as written: its loader turns a bound round where the bounds' ends lie
+    closer crosswise than pairwise, and a lanelet so turned follows nothing."""
+    return _aligned_points(*map(ids.xy, start), *map(ids.xy, end))
+
+
+def _middle_edge(ids, start: tuple[int, int], end: tuple[int, int]):
+    """New (left, right) nodes ``MIDDLE_HALF_WIDTH`` either side of the middle of the two
+    edges, across the way from the one edge's centre to the other's, left on the left."""
+    la, ra, lb, rb = (ids.xy(n) for n in (*start, *end))
+    centre = (la + ra + lb + rb) / 4
+    ahead = (lb + rb) / 2 - (la + ra) / 2
+    if np.hypot(*ahead) < 1e-6:  # the two edges face each other across no distance
+        ahead = np.array([-(la - ra)[1], (la - ra)[0]])
+    ahead = ahead / np.hypot(*ahead)
+    across = MIDDLE_HALF_WIDTH * np.array([-ahead[1], ahead[0]])
+    return (ids.node(centre + across), ids.node(centre - across))
+
+
+def _aligned_points(la, ra, lb, rb) -> bool:
+    """lanelet2's test, with a margin: a bound of no length (a sidewalk's corner on a
+    crossing's) ties the two sums, and lanelet2 turns such a bound round."""
+    return (np.hypot(*(la - ra)) + np.hypot(*(lb - rb)) + ALIGN_MARGIN_M
+            < np.hypot(*(la - rb)) + np.hypot(*(lb - ra)))
+
+
+def _leaving(ends: dict, port: tuple) -> tuple[int, int]:
+    """(left, right) nodes where a pedestrian leaves the lanelet of ``port`` into the walking
+    area: its end points if it ends there, else its start points seen walking it backwards."""
+    _, source, end = port
+    left, right = ends[source, end]
+    return (left, right) if end == "end" else (right, left)
+
+
+def _entering(ends: dict, port: tuple) -> tuple[int, int]:
+    """(left, right) nodes where a pedestrian enters the lanelet of ``port``: its start
+    points if it starts there, else its end points seen walking it backwards."""
+    _, source, end = port
+    left, right = ends[source, end]
+    return (left, right) if end == "start" else (right, left)
