@@ -20,7 +20,6 @@ from pathlib import Path
 import numpy as np
 from lxml import etree
 
-from ..hdmap.control import light_program
 from ..hdmap.model import DIRECTIONS, HDMap, edge_id
 from ..projection import tmerc
 
@@ -73,8 +72,7 @@ def plain_nodes(hd: HDMap) -> etree._Element:
     """``<nodes>``: one node per junction with its control type. A dead end on the map border
     (a road that ran on into the town the map was cut from) is marked ``fringe="outer"``, so
     that randomTrips' ``--fringe-junctions`` sends through traffic in and out there, and not
-    at the cul-de-sacs inside. A traffic light is fixed-time or vehicle-actuated
-    (``control.light_program``)."""
+    at the cul-de-sacs inside."""
     root = _root("nodes", "nodes_file.xsd")
     if hd.geo_origin is not None:
         _add_location(root, hd)
@@ -82,11 +80,8 @@ def plain_nodes(hd: HDMap) -> etree._Element:
         j = hd.junctions[jid]
         x, y = j.xy
         outer = j.type == "dead_end" and min(x, y, hd.width - x, hd.height - y) < BORDER_M
-        extra = {"fringe": "outer"} if outer else {}
-        if j.type == "traffic_light":
-            extra["tlType"] = light_program([hd.roads[r].road_class for r in j.roads])
         etree.SubElement(root, "node", id=node_id(jid), x=_num(x), y=_num(y), type=j.type,
-                         **extra)
+                         **({"fringe": "outer"} if outer else {}))
     return root
 
 

@@ -54,14 +54,6 @@ def junction_control(classes: list[str], rules: str = DEFAULT_RULES,
     return "priority"
 
 
-def light_program(classes: list[str]) -> str:
-    """The program of a traffic light: fixed-time (``static``) where two arterials cross or
-    meet, so that the lights along an arterial can be timed as a green wave
-    (``scenario.signal_plans``); vehicle-actuated where an arterial meets a collector, whose
-    side-street traffic comes and goes."""
-    return "static" if classes.count("arterial") >= 2 else "actuated"
-
-
 def signalised(classes: list[str]) -> bool:
     """Traffic lights where two arterials cross or meet (three arterial arms, or two in a
     four-way or larger junction) or an arterial meets a collector at a four-way (or larger)
