@@ -24,7 +24,7 @@ VIRTUAL = (("type", "virtual"),)
 ZEBRA = (("type", "zebra_marking"),)
 MIDDLE_HALF_WIDTH = 1.0  # m: the middle edge of a lanelet pair across a sharp turn
 TURNS = 16  # directions tried for that edge
-ALIGN_MARGIN_M = 0.05
+MIN_BOUND_M = 0.05
 
 
 @dataclass
@@ -96,24 +96,37 @@ def _aligned(ids, start: tuple[int, int], end: tuple[int, int]) -> bool:
     return _aligned_points(*map(ids.xy, start), *map(ids.xy, end))
 
 
-def _middle_edge(ids, start: tuple[int, int], end: tuple[int, int]):
+def _middle_edge(ids, start: tuple[int, int], end: tuple[int, int]) -> tuple[int, int]:
     """New (left, right) nodes ``MIDDLE_HALF_WIDTH`` either side of the middle of the two
-    edges, across the way from the one edge's centre to the other's, left on the left."""
+    edges, turned so that lanelet2 reads both halves as written (the first turn that does,
+    else across the way from the one edge's centre to the other's)."""
     la, ra, lb, rb = (ids.xy(n) for n in (*start, *end))
     centre = (la + ra + lb + rb) / 4
     ahead = (lb + rb) / 2 - (la + ra) / 2
-    if np.hypot(*ahead) < 1e-6:  # the two edges face each other across no distance
-        ahead = np.array([-(la - ra)[1], (la - ra)[0]])
-    ahead = ahead / np.hypot(*ahead)
-    across = MIDDLE_HALF_WIDTH * np.array([-ahead[1], ahead[0]])
+    best = np.arctan2(ahead[1], ahead[0]) + np.pi / 2  # left of the way ahead
+    for angle in best + np.arange(TURNS) * 2 * np.pi / TURNS:
+        across = MIDDLE_HALF_WIDTH * np.array([np.cos(angle), np.sin(angle)])
+        if _aligned_points(la, ra, centre + across, centre - across) and _aligned_points(
+                centre + across, centre - across, lb, rb):
+            break
+    else:
+        across = MIDDLE_HALF_WIDTH * np.array([np.cos(best), np.sin(best)])
     return (ids.node(centre + across), ids.node(centre - across))
 
 
 def _aligned_points(la, ra, lb, rb) -> bool:
-    """lanelet2's test, with a margin: a bound of no length (a sidewalk's corner on a
-    crossing's) ties the two sums, and lanelet2 turns such a bound round."""
-    return (np.hypot(*(la - ra)) + np.hypot(*(lb - rb)) + ALIGN_MARGIN_M
-            < np.hypot(*(la - rb)) + np.hypot(*(lb - ra)))
+    """lanelet2's test (``geometry::align`` when it loads a lanelet): the middle of the right
+    bound must lie right of the left bound and the middle of the left bound left of the right
+    one, else it turns that bound round. Bounds shorter than ``MIN_BOUND_M`` fail: their side
+    is a rounding error."""
+    if min(np.hypot(*(lb - la)), np.hypot(*(rb - ra))) < MIN_BOUND_M:
+        return False
+    return (_cross(lb - la, (ra + rb) / 2 - la) < -MIN_BOUND_M
+            and _cross(rb - ra, (la + lb) / 2 - ra) > MIN_BOUND_M)
+
+
+def _cross(a, b) -> float:
+    return float(a[0] * b[1] - a[1] * b[0])
 
 
 def _leaving(ends: dict, port: tuple) -> tuple[int, int]:
