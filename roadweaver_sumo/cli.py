@@ -96,6 +96,15 @@ def _crash_log(argv: list[str] | None) -> Path:
     return Path("(no writable folder for the log)")
 
 
+def _rule_and_demand_fields(args) -> dict:
+    """The spec fields of the options a scenario and every scenario of a suite share
+    (``cli_parser._add_rule_and_demand_options``)."""
+    return {"rules": args.rules, "one_way_share": args.one_way_share,
+            "sidewalks": args.sidewalks, "persons": args.persons, "bus_lines": args.bus_lines,
+            "vehicle_mix": parse_vehicle_mix(args.vehicle_mix), "departures": args.departures,
+            "fringe_factor": args.fringe_factor}
+
+
 def _make_scenario(args) -> int:
     width, height = parse_size(args.size)
     if args.density is None and args.like is None:
@@ -119,14 +128,7 @@ def _make_scenario(args) -> int:
         style=args.style,
         skeleton=args.skeleton,
         boundary=args.boundary,
-        rules=args.rules,
-        one_way_share=args.one_way_share,
-        sidewalks=args.sidewalks,
-        persons=args.persons,
-        bus_lines=args.bus_lines,
-        vehicle_mix=parse_vehicle_mix(args.vehicle_mix),
-        departures=args.departures,
-        fringe_factor=args.fringe_factor,
+        **_rule_and_demand_fields(args),
         geo_origin=parse_geo_origin(args.geo_origin),
         duration=args.duration,
         like=like,
@@ -228,11 +230,7 @@ def _make_suite(args) -> int:
     suite = SuiteSpec(densities=parse_densities(args.densities), styles=parse_styles(args.styles),
                       seeds=parse_seeds(args.seeds), width=width, height=height,
                       vehicles=args.vehicles, duration=args.duration, skeleton=args.skeleton,
-                      boundary=args.boundary, rules=args.rules,
-                      one_way_share=args.one_way_share, sidewalks=args.sidewalks,
-                      persons=args.persons, bus_lines=args.bus_lines,
-                      vehicle_mix=parse_vehicle_mix(args.vehicle_mix), departures=args.departures,
-                      fringe_factor=args.fringe_factor,
+                      boundary=args.boundary, **_rule_and_demand_fields(args),
                       ego_routes=args.ego_routes,
                       ego_length=args.ego_length)  # fmt: skip
     total = len(suite.scenarios())

@@ -36,7 +36,8 @@ def write_map_files(hd: HDMap, folder: Path, template: str = "urban",
         net = run_netconvert(folder, template, walkingareas=bool(hd.sidewalks))
     with timed("OpenDRIVE and lanelet2 with SUMO's right of way ...", "formats"):
         attach_right_of_way(hd, net)
-        hd.crosswalks, hd.walking_areas = read_crossings(net)
+        if hd.sidewalks:  # crossings and walking areas only where there are sidewalks
+            hd.crosswalks, hd.walking_areas = read_crossings(net)
         write_opendrive(hd, folder / XODR_FILE)
         write_lanelet2(hd, folder / LANELET2_FILE)
     return {"plain": folder / PLAIN_DIR, "sumo": folder / NET_NAME,

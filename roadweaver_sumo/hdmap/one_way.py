@@ -29,6 +29,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from ..realism import junction_arms, stroke_groups
+from .geometry import arc_lengths
 from .model import Road
 
 MIN_STROKE_M = 60.0
@@ -60,7 +61,7 @@ def choose_one_way(G: nx.Graph, roads: dict[int, Road], share: float) -> None:
 
 
 def _length(road: Road) -> float:
-    return float(np.hypot(*np.diff(road.centreline, axis=0).T).sum())
+    return float(arc_lengths(road.centreline)[-1])
 
 
 def _candidate_strokes(G: nx.Graph, by_edge: dict) -> list[dict]:

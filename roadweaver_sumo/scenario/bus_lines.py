@@ -45,16 +45,17 @@ def write_bus_lines(folder: Path, lines: int, duration: float,
     road ends a bus can drive between."""
     folder = Path(folder)
     net = sumolib.net.readNet(str(folder / net_file))
+    graph = _bus_graph(net)
     routes, stops = etree.Element("routes"), etree.Element("additional")
     etree.SubElement(routes, "vType", id=BUS, vClass=BUS, **WAIT_AT_STOP_LINE)
     used: list = []  # the terminals of earlier lines
     length = 0.0
     for line in range(lines):
-        there = _line_route(net, used)
+        there = _line_route(net, graph, used)
         if there is None:
             raise RoadweaverError(f"--bus-lines {lines}: the map has main roads for only {line} "
                                   "line(s); ask for fewer")
-        back = _bus_route(net, _reverse(there[-1]), _reverse(there[0]))
+        back = _bus_route(net, graph, _reverse(there[-1]), _reverse(there[0]))
         for name, edges in ((f"line{line}_there", there), (f"line{line}_back", back or [])):
             if not edges:
                 continue
@@ -74,7 +75,7 @@ def write_bus_lines(folder: Path, lines: int, duration: float,
     return {"lines": lines, "stops": len(stops), "route_length_m": round(length, 1)}
 
 
-def _line_route(net, used: list):
+def _line_route(net, graph: nx.DiGraph, used: list):
     """The fastest bus route between the two main-road edges farthest apart (two-way edges
     of the highest priority; the farthest pair lies on the convex hull of their middles),
     leaving the first towards the second and the second away from the first, at least
@@ -95,18 +96,29 @@ def _line_route(net, used: list):
     for a, b in pairs:
         start = min((a, _reverse(a)), key=lambda e: _gap(e.getToNode(), b))
         end = max((b, _reverse(b)), key=lambda e: _gap(e.getToNode(), a))
-        path = _bus_route(net, start, end)
+        path = _bus_route(net, graph, start, end)
         if path and len(path) >= 2:
             return path
     return None
 
 
-def _bus_route(net, start, end) -> list | None:
-    """The quickest route for a bus from edge ``start`` to edge ``end`` where every turn
-    off the road ahead costs ``TURN_PENALTY_S`` more unless a traffic light governs it: a
-    12 m bus waiting inside an unsignalised junction to turn left, or sweeping through it,
-    was hit by cars and buses waiting or passing there (3 collisions in one of 30 sweep
-    scenarios). Real lines, too, follow the main roads and turn at lights."""
+def _bus_route(net, graph: nx.DiGraph, start, end) -> list | None:
+    """The quickest route for a bus from edge ``start`` to edge ``end`` on ``graph``
+    (:func:`_bus_graph`), or None."""
+    try:
+        ids = nx.shortest_path(graph, start.getID(), end.getID(), weight="weight")
+    except (nx.NetworkXNoPath, nx.NodeNotFound):
+        return None
+    return [net.getEdge(e) for e in ids]
+
+
+def _bus_graph(net) -> nx.DiGraph:
+    """The edges buses may use, linked where a bus may turn from one into the next, each
+    link weighted by the time to drive the next edge plus ``TURN_PENALTY_S`` for a turn off
+    the road ahead that no traffic light governs: a 12 m bus waiting inside an unsignalised
+    junction to turn left, or sweeping through it, was hit by cars and buses waiting or
+    passing there (3 collisions in one of 30 sweep scenarios). Real lines, too, follow the
+    main roads and turn at lights."""
     graph = nx.DiGraph()
     for edge in net.getEdges():
         if not edge.allows(BUS):
@@ -119,11 +131,7 @@ def _bus_route(net, start, end) -> list | None:
             turn = direction not in ("s", "S") and not signalised
             cost = after.getLength() / after.getSpeed() + (TURN_PENALTY_S if turn else 0.0)
             graph.add_edge(edge.getID(), after.getID(), weight=cost)
-    try:
-        ids = nx.shortest_path(graph, start.getID(), end.getID(), weight="weight")
-    except (nx.NetworkXNoPath, nx.NodeNotFound):
-        return None
-    return [net.getEdge(e) for e in ids]
+    return graph
 
 
 def _stops(edges, prefix: str):

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 
 from ..errors import RoadweaverError
 from ..spec import (
@@ -67,18 +67,12 @@ class SuiteSpec:
             )
 
     def scenarios(self) -> list[ScenarioSpec]:
-        return [
-            ScenarioSpec(density=d, vehicles=self.vehicles, width=self.width, height=self.height,
-                         seed=s, style=style, skeleton=self.skeleton, duration=self.duration,
-                         boundary=self.boundary, rules=self.rules,
-                         one_way_share=self.one_way_share, sidewalks=self.sidewalks,
-                         persons=self.persons, bus_lines=self.bus_lines,
-                         vehicle_mix=dict(self.vehicle_mix), departures=self.departures,
-                         fringe_factor=self.fringe_factor,
-                         ego_routes=self.ego_routes,
-                         ego_length=self.ego_length)
-            for d in self.densities for style in self.styles for s in self.seeds
-        ]  # fmt: skip
+        """One spec per (density, style, seed); every other field is the same for all."""
+        shared = {f.name: getattr(self, f.name) for f in fields(self)
+                  if f.name not in ("densities", "styles", "seeds")}
+        return [ScenarioSpec(density=d, style=style, seed=s,
+                             **shared | {"vehicle_mix": dict(self.vehicle_mix)})
+                for d in self.densities for style in self.styles for s in self.seeds]
 
     def to_dict(self) -> dict:
         """The fields, lists for tuples; the :data:`~roadweaver_sumo.spec.UNSAID` values left
