@@ -82,14 +82,15 @@ def test_drive_command_writes_its_report_and_refuses_bad_input(scenario, tmp_pat
     assert "not a scenario folder" in capsys.readouterr().err
 
 
-def test_the_readme_example_controller_keeps_signals_and_limits(scenario):
-    """The controller the README shows (docs/examples/my_stack.py, the same text) drives both
-    routes to the end without running a light or speeding."""
+def test_the_tutorial_example_controller_keeps_signals_and_limits(scenario):
+    """The controller the closed-loop tutorial shows (docs/closed_loop.md; the same text as
+    docs/examples/my_stack.py) drives both routes to the end without running a light or
+    speeding."""
     import importlib.util
 
     root = Path(__file__).resolve().parents[1]
     source = (root / "docs" / "examples" / "my_stack.py").read_text()
-    assert source.rstrip() in (root / "README.md").read_text()
+    assert source.rstrip() in (root / "docs" / "closed_loop.md").read_text()
     spec = importlib.util.spec_from_file_location("my_stack", root / "docs/examples/my_stack.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -275,7 +276,7 @@ def test_near_misses_come_from_sumos_ssm_device(scenario):
 
 
 def test_stop_signs_are_kept_by_sumo_and_the_example_and_run_by_the_naive_controller(tmp_path):
-    """Under US rules most junctions have stop signs: SUMO's driver and the README's example
+    """Under US rules most junctions have stop signs: SUMO's driver and the tutorial's example
     controller stand still at each; the naive controller rolls through and each time is a
     stop_sign infraction naming the lane and SUMO's link state (s: stop, w: all-way stop)."""
     import importlib.util
