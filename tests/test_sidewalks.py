@@ -147,3 +147,21 @@ def test_persons_without_sidewalks_is_a_one_line_error(tmp_path, capsys):
                  "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--persons needs sidewalks" in err[0]
+
+
+def test_a_walking_area_turn_between_ends_that_cross_each_other_loads_as_written():
+    """At a tight corner SUMO's walking area can join two sidewalk ends that cross each other
+    (an X, here taken from a learned 1 km map): one lanelet between them is twisted, and a
+    middle edge at the middle of the two is too (lanelet2 turns a bound of one half round, and
+    the sidewalk is cut off for pedestrian routing). The middle edge goes aside until both
+    halves pass lanelet2's own orientation test."""
+    from roadweaver_sumo.export.lanelet2 import _Ids
+    from roadweaver_sumo.export.lanelet2_walks import _aligned_points, _middle_edge
+
+    ids = _Ids()
+    first = ids.nodes([(543.49, 625.67), (545.49, 625.86), (545.06, 628.11), (543.78, 626.57)])
+    start, end = (first, first + 1), (first + 2, first + 3)
+    left, right, left_end, right_end = (ids.xy(n) for n in (*start, *end))
+    assert not _aligned_points(left, right, left_end, right_end)
+    middle = [ids.xy(n) for n in _middle_edge(ids, start, end)]
+    assert _aligned_points(left, right, *middle) and _aligned_points(*middle, left_end, right_end)

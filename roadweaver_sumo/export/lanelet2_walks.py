@@ -24,6 +24,7 @@ VIRTUAL = (("type", "virtual"),)
 ZEBRA = (("type", "zebra_marking"),)
 MIDDLE_HALF_WIDTH = 1.0  # m: the middle edge of a lanelet pair across a sharp turn
 TURNS = 16  # directions tried for that edge
+MIDDLE_REACH = (1.0, 2.0, 3.0)  # m: how far from the middle it may be moved
 MIN_BOUND_M = 0.05
 
 
@@ -97,20 +98,25 @@ def _aligned(ids, start: tuple[int, int], end: tuple[int, int]) -> bool:
 
 
 def _middle_edge(ids, start: tuple[int, int], end: tuple[int, int]) -> tuple[int, int]:
-    """New (left, right) nodes ``MIDDLE_HALF_WIDTH`` either side of the middle of the two
-    edges, turned so that lanelet2 reads both halves as written (the first turn that does,
-    else across the way from the one edge's centre to the other's)."""
+    """New (left, right) nodes ``MIDDLE_HALF_WIDTH`` either side of a point near the middle of
+    the two edges, turned so that lanelet2 reads both halves as written: the first turn that
+    does at the middle, else at points up to ``MIDDLE_REACH`` m from it (two edges that cross
+    each other, at a tight corner, need the middle edge off to one side); else across the way
+    from the one edge's centre to the other's."""
     la, ra, lb, rb = (ids.xy(n) for n in (*start, *end))
     centre = (la + ra + lb + rb) / 4
     ahead = (lb + rb) / 2 - (la + ra) / 2
     best = np.arctan2(ahead[1], ahead[0]) + np.pi / 2  # left of the way ahead
-    for angle in best + np.arange(TURNS) * 2 * np.pi / TURNS:
-        across = MIDDLE_HALF_WIDTH * np.array([np.cos(angle), np.sin(angle)])
-        if _aligned_points(la, ra, centre + across, centre - across) and _aligned_points(
-                centre + across, centre - across, lb, rb):
-            break
-    else:
-        across = MIDDLE_HALF_WIDTH * np.array([np.cos(best), np.sin(best)])
+    turns = best + np.arange(TURNS) * 2 * np.pi / TURNS
+    places = [centre] + [centre + reach * np.array([np.cos(a), np.sin(a)])
+                         for reach in MIDDLE_REACH for a in turns]
+    for place in places:
+        for angle in turns:
+            across = MIDDLE_HALF_WIDTH * np.array([np.cos(angle), np.sin(angle)])
+            if _aligned_points(la, ra, place + across, place - across) and _aligned_points(
+                    place + across, place - across, lb, rb):
+                return (ids.node(place + across), ids.node(place - across))
+    across = MIDDLE_HALF_WIDTH * np.array([np.cos(best), np.sin(best)])
     return (ids.node(centre + across), ids.node(centre - across))
 
 
