@@ -11,7 +11,8 @@ maps), --router-tasks 20 (``Router.plan`` calls through ``plan_routes``, on one 
 pins older numpy/shapely, so it usually lives in its own venv), --json PATH.
 
 Per map: lanelet2 load errors, bounds lanelet2 reversed, routing success and ms per route
-(``getRoute`` on random lanelet pairs); whether the file's lanelet2 topology equals the HD map's
+(``getRoute`` on random lanelet pairs), on maps with sidewalks the share of sidewalk pairs
+lanelet2 routes pedestrians between; whether the file's lanelet2 topology equals the HD map's
 lane graph; Tactics2D load time, search success on its own routing graph, ``Router.plan``
 success (start and goal lanes matched) and ms per route, with and without the graph rebuild.
 """
@@ -27,6 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from roadweaver_sumo import generate_map
 from roadweaver_sumo.export.map_files import write_map_files
 from roadweaver_sumo.integrations.tactics2d import hd_lane_relations
 from roadweaver_sumo.validate.lanelet2_check import (
@@ -44,16 +46,6 @@ def seeds_arg(text: str) -> list[int]:
     return [int(s) for s in text.split(",")]
 
 
-def build_hdmap_for(spec):
-    from roadweaver_sumo.expand import expand_skeleton
-    from roadweaver_sumo.hdmap import build_hdmap
-    from roadweaver_sumo.skeleton import make_skeleton
-
-    graph = expand_skeleton(spec, make_skeleton(spec))
-    return build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights,
-                       rules=spec.rules, one_way_share=spec.one_way_share)
-
-
 def cases(args, work: Path):
     """(name, lanelet2_map.osm, HD map) per scenario folder or sweep point; missing maps are written."""
     from roadweaver_sumo.spec import ScenarioSpec
@@ -68,7 +60,7 @@ def cases(args, work: Path):
             specs.append((spec, work / spec.name / "lanelet2_map.osm"))
     for spec, osm in specs:
         start = time.perf_counter()
-        hd = build_hdmap_for(spec)
+        hd = generate_map(spec)  # as make-scenario builds it, sidewalks and --like included
         generate_s = time.perf_counter() - start
         write_s = None
         if not osm.exists():
@@ -175,6 +167,8 @@ def format_row(r: dict) -> str:
                  f"topo={len(l2['topology_mismatches'])} "
                  f"route={l2['route_success']:.3f} {l2['route_ms']:.2f}ms "
                  f"proj={1000 * l2['projection_max_error_m']:.3f}mm")
+        if "pedestrian_route_success" in l2:
+            text += f" walk={l2['pedestrian_route_success']:.3f}"
     else:
         text += f" | l2 {l2.get('error')}"
     if t2 and "error" not in t2:
@@ -202,6 +196,10 @@ def summary(rows: list[dict]) -> str:
             f"{statistics.mean(x['route_ms'] for x in l2):.2f} max "
             f"{max(x['route_ms'] for x in l2):.2f}, projection max "
             f"{1000 * max(x['projection_max_error_m'] for x in l2):.3f} mm")
+        walks = [x["pedestrian_route_success"] for x in l2 if "pedestrian_route_success" in x]
+        if walks:
+            lines.append(f"pedestrian routing (maps with sidewalks: {len(walks)}): min "
+                         f"{min(walks):.3f} mean {statistics.mean(walks):.4f}")
     t2 = [r["tactics2d"] for r in rows if r["tactics2d"] and "error" not in r["tactics2d"]]
     if t2:
         lines.append(
