@@ -199,7 +199,13 @@ def test_lanelet2_loads_the_map_and_routes_random_pairs(hd, osm):
     assert result["lanelets"] == len(hd.lanes)
     assert result["inverted_bounds"] == [] and result["topology_mismatches"] == []
     assert result["speed_limit_mismatches"] == 0 and result["lanelets_without_following"] == 0
-    neighbours = sum(bool(lane.left_neighbour) + bool(lane.right_neighbour)
+    def reach(lane, side: str) -> int:  # lanelet2's lefts/rights: every lane a change away
+        count = 0
+        while (lane := hd.lanes.get(getattr(lane, side) or "")) is not None:
+            count += 1
+        return count
+
+    neighbours = sum(reach(lane, "left_neighbour") + reach(lane, "right_neighbour")
                      for lane in hd.lanes.values())
     assert result["lane_change_relations"] == neighbours > 0 and result["traffic_lights"] > 0
     assert result["route_success"] >= 0.99

@@ -18,6 +18,7 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
+import shapely
 from lxml import etree
 
 from ..hdmap.model import DIRECTIONS, HDMap, edge_id
@@ -81,8 +82,26 @@ def plain_nodes(hd: HDMap) -> etree._Element:
         x, y = j.xy
         outer = j.type == "dead_end" and min(x, y, hd.width - x, hd.height - y) < BORDER_M
         etree.SubElement(root, "node", id=node_id(jid), x=_num(x), y=_num(y), type=j.type,
-                         **({"fringe": "outer"} if outer else {}))
+                         **({"fringe": "outer"} if outer else {}),
+                         **({"shape": " ".join(_points(_taper_shape(hd, j)))} if j.taper else {}))
     return root
+
+
+def _taper_shape(hd: HDMap, junction) -> np.ndarray:
+    """The outline of a taper junction (``hdmap.turn_bays``): the hull of its lanes' ends.
+    netconvert would make a two-arm junction a few metres long, the through lanes jumping a
+    lane width aside in it; given the HD map's outline, its internal lanes are the HD map's
+    connectors."""
+    points = []
+    for rid in junction.roads:
+        road = hd.roads[rid]
+        for direction in DIRECTIONS:
+            lanes = [hd.lanes[lane_id] for lane_id in road.lanes(direction)]
+            sidewalk = hd.sidewalks.get(f"{edge_id(rid, direction)}_0")
+            for lane in lanes + ([sidewalk] if sidewalk else []):
+                k = -1 if road.ends_at(direction) == junction.id else 0
+                points += [lane.left[k], lane.right[k]]
+    return np.asarray(shapely.MultiPoint(points).convex_hull.exterior.coords)[:-1]
 
 
 def plain_edges(hd: HDMap) -> etree._Element:

@@ -11,6 +11,7 @@ from .model import HDMap, Road
 from .movements import junction_plan
 from .one_way import choose_one_way
 from .topology import add_successor_links, repair_topology
+from .turn_bays import add_turn_bays
 
 #: A junction whose turn bends tighter than half its lane's width (its inner lane edge folds
 #: over where a reader offsets the lane from its centre line) grows by this factor, up to
@@ -31,10 +32,12 @@ def build_hdmap(
     the regional ``rules`` (``control.RULES``); ``traffic_lights=False`` leaves out the lights
     (suburban maps). Up to ``one_way_share`` of the local street length becomes one-way
     (``one_way``). ``sidewalks``: every road gets a sidewalk of ``SIDEWALK_WIDTH`` right of
-    each driving direction.
+    each driving direction. Approaches to traffic lights get left-turn bays (``turn_bays``;
+    ``HDMap.graph`` is then the road graph with their taper nodes).
     RepairLaneGeometry needs no pass of its own: connectors end exactly on the lanes they join
     and junction trims leave every road a lane section (see ``lanes.MAX_TRIM_SHARE``).
     """
+    G = add_turn_bays(G, rules, traffic_lights)
     hd = HDMap(
         width=float(G.graph["width"]),
         height=float(G.graph["height"]),
@@ -45,7 +48,8 @@ def build_hdmap(
     hd.roads = make_roads(G, sidewalk_width)  # RefineRoadGraph, AssignLaneConfig
     choose_one_way(G, hd.roads, one_way_share)
     nodes = {n: G.nodes[n]["xy"] for n in G.nodes}
-    hd.junctions = make_junctions(nodes, hd.roads, traffic_lights, rules)
+    tapers = frozenset(n for n, taper in G.nodes(data="taper") if taper)
+    hd.junctions = make_junctions(nodes, hd.roads, traffic_lights, rules, tapers)
     roads, junctions = list(hd.roads.values()), list(hd.junctions)
     for _ in range(WIDEN_ROUNDS + 1):
         tight = {lane.junction for lane in _lanes_and_connectors(hd, roads, junctions)}

@@ -21,9 +21,10 @@ from .geometry import (
     end_directions,
     offset_along,
 )
-from .lanes import BEND_MARGIN, LANE_CONFIGS, LaneEnds, lane_ends
+from .lanes import BEND_MARGIN, LaneEnds, half_width, lane_ends
 from .model import HDMap, Junction, Lane, Road
 from .reference import Piece, plan_points
+from .turn_bays import TAPER_LENGTH
 
 MIN_RADIUS = 2.0  # m: room for a connector even where a road just continues (degree-2 nodes)
 MARGIN = 1.0  # m: clearance added beyond the point where road edges meet
@@ -82,10 +83,11 @@ def junction_radii(directions: np.ndarray, half_widths: np.ndarray, lane_widths:
 
 def make_junctions(
     nodes: dict[int, tuple[float, float]], roads: dict[int, Road], traffic_lights: bool = True,
-    rules: str = DEFAULT_RULES,
+    rules: str = DEFAULT_RULES, tapers: frozenset[int] = frozenset(),
 ) -> dict[int, Junction]:
     """One junction per node with its incident roads, control (``control``) and trim
-    radius."""
+    radius; at a taper node (``turn_bays``) the through lanes move aside over
+    ``TAPER_LENGTH``, so the lane ends stay back half that."""
     incident: dict[int, list[int]] = defaultdict(list)
     for road in roads.values():
         incident[road.from_node].append(road.id)
@@ -97,9 +99,12 @@ def make_junctions(
     incidents = [sorted(incident[node]) for node in nodes_in_order]
     dirs = heads[[row[r] + (roads[r].from_node != node)
                   for node, rids in zip(nodes_in_order, incidents, strict=True) for r in rids]]
-    configs = [LANE_CONFIGS[roads[r].road_class] for rids in incidents for r in rids]
-    radii = junction_radii(dirs, np.array([c.half_width for c in configs]),
-                           np.array([c.width for c in configs]), [len(rids) for rids in incidents])
+    arms = [roads[r] for rids in incidents for r in rids]
+    radii = junction_radii(dirs, np.array([half_width(road) for road in arms]),
+                           np.array([road.lane_width for road in arms]),
+                           [len(rids) for rids in incidents])
+    radii = [max(radius, TAPER_LENGTH / 2) if node in tapers else radius
+             for node, radius in zip(nodes_in_order, radii, strict=True)]
     return {
         node: Junction(
             id=node,
@@ -107,6 +112,7 @@ def make_junctions(
             type=junction_control([roads[r].road_class for r in rids], rules, traffic_lights),
             radius=radius,
             roads=rids,
+            taper=node in tapers,
         )
         for node, rids, radius in zip(nodes_in_order, incidents, radii, strict=True)
     }

@@ -2,7 +2,8 @@
 AssignLaneConfig, GenerateLaneBoundaries, ConstructDirectionalLanes).
 
 Right-hand traffic: lanes driving along the reference line lie right of it, the others left of
-it; a two-way road has the same lane count in both directions, a one-way road
+it; a two-way road has its class's lane count in both directions but for a left-turn bay
+(``turn_bays``: one lane more on the direction arriving at a light), a one-way road
 (``one_way``) its lanes centred on the reference line. A road with sidewalks has one right of
 each driving direction, lane index 0 as in SUMO; its driving lanes are then 1..n.
 """
@@ -81,10 +82,11 @@ def make_roads(G: nx.Graph, sidewalk_width: float = 0.0) -> dict[int, Road]:
         data = G.edges[u, v]
         start = data["start"]
         cfg = LANE_CONFIGS[data["road_class"]]
+        to_node = v if start == u else u
         roads[rid] = Road(
             id=rid,
             from_node=start,
-            to_node=v if start == u else u,
+            to_node=to_node,
             centreline=dedupe(data["coords"]),
             road_class=data["road_class"],
             priority=cfg.priority,
@@ -92,8 +94,19 @@ def make_roads(G: nx.Graph, sidewalk_width: float = 0.0) -> dict[int, Road]:
             lane_width=cfg.width,
             sections=[],
             sidewalk_width=sidewalk_width,
+            bay=None if "bay_to" not in data else "f" if data["bay_to"] == to_node else "b",
         )
     return roads
+
+
+def lane_count(road: Road, direction: str) -> int:
+    """Driving lanes of one direction of ``road``: its class's, one more with a turn bay."""
+    return LANE_CONFIGS[road.road_class].lanes + (road.bay == direction)
+
+
+def half_width(road: Road) -> float:
+    """Distance from the reference line to the outer edge of the road's wider side, metres."""
+    return LANE_CONFIGS[road.road_class].half_width + road.lane_width * (road.bay is not None)
 
 
 def plan_reference_lines(roads: list[Road], trims: list[tuple[float, float]]) -> None:
@@ -102,7 +115,8 @@ def plan_reference_lines(roads: list[Road], trims: list[tuple[float, float]]) ->
     RefineRoadGraph), all roads in one batch. The centreline is cut back by the trims, with
     no vertex within ``END_STRAIGHT`` of a cut end, and its corners filleted with arcs of at
     least the class's ``min_radius``."""
-    radii = [LANE_CONFIGS[road.road_class].min_radius + road.sidewalk_width for road in roads]
+    radii = [max(MIN_TURN_RADIUS, half_width(road) + BEND_MARGIN) + road.sidewalk_width
+             for road in roads]
     cuts = []
     for road, (trim_start, trim_end) in zip(roads, trims, strict=True):
         length = float(arc_lengths(road.centreline)[-1])
@@ -121,9 +135,8 @@ def plan_reference_lines(roads: list[Road], trims: list[tuple[float, float]]) ->
         for k, plan, line in zip(moved, again, again_lines, strict=True):
             plans[k], lines[k] = plan, line
     for road, (s0, s1, _), line, plan in zip(roads, cuts, lines, plans, strict=True):
-        n = LANE_CONFIGS[road.road_class].lanes
         first = _first_lane(road)
-        ids = {d: [road_lane_id(road.id, d, first + k) for k in range(n)]
+        ids = {d: [road_lane_id(road.id, d, first + k) for k in range(lane_count(road, d))]
                for d in _directions(road)}
         ids.setdefault("b", [])
         road.sections = [LaneSection(s0, s1, ids["f"], ids["b"])]
@@ -165,15 +178,16 @@ def build_road_lanes(road: Road) -> tuple[list[Lane], list[Lane]]:
     """Offset a road's reference line (:func:`plan_reference_lines`) into lane boundaries and
     build the directional lanes of its driving directions, and its sidewalks (one right of
     each direction, if the road has them)."""
-    n = LANE_CONFIGS[road.road_class].lanes
     points, tangents = road.reference
-    offsets = _lane_offsets(road.road_class, road.one_way, road.sidewalk_width)
+    counts = tuple(lane_count(road, d) for d in _directions(road))
+    offsets = _lane_offsets(road.road_class, road.one_way, road.sidewalk_width, counts)
     lines = offset_along(points, tangents, offsets[:, None])
-    directions = _directions(road)
-    size = len(offsets) // len(directions)  # lines per direction
     lanes, sidewalks = [], []
-    for k, d in enumerate(directions):
-        part = lines[k * size : (k + 1) * size]
+    first = 0
+    for d, n in zip(_directions(road), counts, strict=True):
+        size = 2 * n + 1 + 2 * bool(road.sidewalk_width)  # lines of this direction
+        part = lines[first : first + size]
+        first += size
         if d == "b":  # offset left of the reference line: reversed into driving direction
             part = part[:, ::-1]
         lanes += _directional_lanes(road, d, part[: n + 1], part[n + 1 : 2 * n + 1])
@@ -194,31 +208,36 @@ def _first_lane(road: Road) -> int:
 
 
 @cache
-def _lane_offsets(road_class: str, one_way: bool = False, sidewalk: float = 0.0) -> np.ndarray:
+def _lane_offsets(road_class: str, one_way: bool, sidewalk: float,
+                  counts: tuple[int, ...]) -> np.ndarray:
     """Left offsets of a road's lines from its reference line: first those of its ``f`` lanes
     (boundaries, centres, then the sidewalk's outer edge and centre), then the same to the
-    left for its ``b`` lanes (one array for one offsetting call). A one-way road has no ``b``
-    lanes, and its cross-section (lanes and sidewalk) is centred on the reference line."""
-    cfg = LANE_CONFIGS[road_class]
-    n, w = cfg.lanes, cfg.width
-    # how far right of the driving direction the cross-section's left edge lies: the
-    # reference line itself, or half the cross-section left of it on a one-way road
-    start = -(n * w + sidewalk) / 2.0 if one_way else 0.0
-    # boundary j at (n - j) lane widths right of that edge (j = 0 the outermost), then lane
-    # k's centre at (n - k - 0.5) widths
-    right = start + w * np.concatenate([np.arange(n, -1, -1), np.arange(n, 0, -1) - 0.5])
-    if sidewalk:
-        right = np.concatenate([right, start + n * w + np.array([sidewalk, sidewalk / 2.0])])
+    left for its ``b`` lanes (one array for one offsetting call); ``counts``: the lanes of
+    each direction. A one-way road has no ``b`` lanes, and its cross-section (lanes and
+    sidewalk) is centred on the reference line."""
+    w = LANE_CONFIGS[road_class].width
+
+    def right_of(n: int) -> np.ndarray:
+        # how far right of the driving direction the cross-section's left edge lies: the
+        # reference line itself, or half the cross-section left of it on a one-way road
+        start = -(n * w + sidewalk) / 2.0 if one_way else 0.0
+        # boundary j at (n - j) lane widths right of that edge (j = 0 the outermost), then
+        # lane k's centre at (n - k - 0.5) widths
+        right = start + w * np.concatenate([np.arange(n, -1, -1), np.arange(n, 0, -1) - 0.5])
+        if sidewalk:
+            right = np.concatenate([right, start + n * w + np.array([sidewalk, sidewalk / 2.0])])
+        return right
+
     if one_way:
-        return -right
-    return np.concatenate([-right, right])
+        return -right_of(counts[0])
+    return np.concatenate([-right_of(counts[0]), right_of(counts[1])])
 
 
 def _directional_lanes(road: Road, direction: str, bounds: np.ndarray, centres: np.ndarray):
     """The lanes of one driving direction, the outermost first, from their boundaries and
     centres (all in driving direction), with neighbour links between them."""
     cfg = LANE_CONFIGS[road.road_class]
-    n, w = cfg.lanes, cfg.width
+    n, w = lane_count(road, direction), cfg.width
     first = _first_lane(road)
     ids = [road_lane_id(road.id, direction, first + k) for k in range(n)]
     return [

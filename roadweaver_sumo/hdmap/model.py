@@ -107,6 +107,9 @@ class Road:
     one_way: bool = False
     #: m; 0: no sidewalks. A sidewalk lies right of each driving direction (``HDMap.sidewalks``)
     sidewalk_width: float = 0.0
+    #: the driving direction (``f`` or ``b``) that ends in a left-turn bay: one lane more than
+    #: its class, the leftmost turning left at the light it arrives at (``hdmap.turn_bays``)
+    bay: str | None = None
     #: lines and arcs of the reference line within the lane section (``hdmap.reference``)
     plan: list = field(default_factory=list)
     #: ``plan`` sampled: the points the lanes are offset from and their unit tangents
@@ -136,6 +139,8 @@ class Junction:
     radius: float  # lane ends are trimmed back about this far from the centre
     roads: list[int]  # incident roads, sorted
     connectors: list[str] = field(default_factory=list)
+    #: where a turn bay opens (``hdmap.turn_bays``): the through lanes move aside in here
+    taper: bool = False
 
 
 @dataclass

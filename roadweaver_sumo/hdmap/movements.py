@@ -130,11 +130,15 @@ def _straight_lanes(lanes: list[str], ahead: int, movements: set[str]) -> list[s
     """The incoming lanes that go straight on. Where the road ahead has fewer lanes, only as
     many as it has, beside the turn lane: lanes that merge inside a junction run on
     converging internal lanes, and two cars side by side on them touch before the merge
-    point (SUMO counts a junction collision; 5 at priority T's of a 10 km map)."""
+    point (SUMO counts a junction collision; 5 at priority T's of a 10 km map). With room
+    for both (a turn bay's approach onto a narrower road), between the right-turn and the
+    left-turn lane."""
     if ahead >= len(lanes):
         return lanes
     if "right" in movements and "left" not in movements:
         return lanes[len(lanes) - ahead:]  # the rightmost lane is the right-turn lane
+    if {"right", "left"} <= movements and len(lanes) - ahead >= 2:
+        return lanes[1 : 1 + ahead]
     return lanes[:ahead]  # the leftmost lane turns left (or, with no turn, lanes must merge)
 
 

@@ -25,7 +25,8 @@ APPROACH_RULES = {"O": "signalised", "o": "signalised", "G": "signalised", "g": 
 
 def rule_coverage(net: sumolib.net.Net) -> dict:
     """Junctions by control (SUMO node type; places where at least three roads meet), turns
-    into junctions by the rule that governs them, one-way road edges, pedestrian crossings
+    into junctions by the rule that governs them, one-way road edges, turn bays (approaches
+    to a light that gain lanes shortly before it), pedestrian crossings
     (at lights, or zebras where pedestrians go first), the speed limits in km/h and the
     speed-limit changes where a road goes straight on into one of another limit."""
     controls = Counter(node.getType() for node in road_junctions(net)
@@ -47,6 +48,7 @@ def rule_coverage(net: sumolib.net.Net) -> dict:
     return {"junction_controls": dict(sorted(controls.items())),
             "turns_by_rule": dict(sorted(approaches.items())),
             "one_way_edges": one_way,
+            "turn_bays": sum(_opens_a_bay(edge) for edge in road_edges(net)),
             "pedestrian_crossings": dict(sorted(crossings.items())),
             "speed_limits_kmh": sorted({round(e.getSpeed() * 3.6) for e in road_edges(net)}),
             "speed_limit_changes": changes}
@@ -90,6 +92,17 @@ def rule_waits(edgedata_path: Path, approaches: dict[str, str]) -> dict:
             for rule in sorted(vehicles)}
 
 
+def _opens_a_bay(edge) -> bool:
+    """Whether ``edge`` leads to a traffic light with more lanes than the road it continues
+    across a two-arm junction: its extra lanes are turn bays."""
+    start = edge.getFromNode()
+    if edge.getToNode().getType() != "traffic_light" or len(_neighbours(start)) != 2:
+        return False
+    before = [e for e in start.getIncoming() if not e.isSpecial()
+              and e.getFromNode() != edge.getToNode()]
+    return any(e.getLaneNumber() < edge.getLaneNumber() for e in before)
+
+
 def _neighbours(node) -> set[str]:
     """The other road junctions this one has a road to or from."""
     return ({e.getFromNode().getID() for e in node.getIncoming() if not e.isSpecial()} |
@@ -103,7 +116,8 @@ def rule_lines(rules: dict) -> list[str]:
         return ", ".join(f"{kind} x{n}" for kind, n in figures.items()) or "none"
 
     turns = (f"turns by rule: {counts(rules['turns_by_rule'])}; one-way edges "
-             f"{rules['one_way_edges']}; speed limits {rules['speed_limits_kmh']} km/h, "
+             f"{rules['one_way_edges']}; turn bays {rules.get('turn_bays', 0)}; speed limits "
+             f"{rules['speed_limits_kmh']} km/h, "
              f"{rules['speed_limit_changes']} changes; pedestrian crossings "
              f"{counts(rules.get('pedestrian_crossings', {}))}")
     return [f"junction controls: {counts(rules['junction_controls'])}", turns]
