@@ -81,10 +81,18 @@ def test_bays_change_no_road_node_count_and_need_a_light(hd):
     assert plain.graph is G and not any(road.bay for road in plain.roads.values())
 
 
-def test_sumo_builds_the_bays_with_the_hd_maps_tapers_and_the_report_counts_them(hd, tmp_path):
+def test_sumo_builds_the_bays_with_the_hd_maps_tapers_and_protected_lefts(hd, tmp_path):
     files = write_map_files(hd, tmp_path)
-    net = sumolib.net.readNet(str(files["sumo"]), withInternal=True)
-    assert rule_coverage(net)["turn_bays"] == 3
+    net = sumolib.net.readNet(str(files["sumo"]), withInternal=True, withPrograms=True)
+    coverage = rule_coverage(net)
+    assert coverage["turn_bays"] == 3
+    states = [phase.state for program in net.getTLS("n0").getPrograms().values()
+              for phase in program.getPhases()]
+    protected = {into.getID() for into, _, index in net.getTLS("n0").getConnections()
+                 if any(state[index] == "G" for state in states)}
+    for road in (r for r in hd.roads.values() if r.bay):  # netconvert's own left phase
+        assert f"r{road.id}_{road.bay}_2" in protected
+    assert coverage["protected_lefts"] >= 3
     for node in (5, 6, 7):
         internal = [net.getLane(c.getViaLaneID()) for edge in net.getNode(f"n{node}").getIncoming()
                     for conns in edge.getOutgoing().values() for c in conns if c.getViaLaneID()]

@@ -26,11 +26,12 @@ VEHICLE_CLASS = "passenger"
 
 
 def load_net(net_path: Path) -> sumolib.net.Net:
-    """The net with internal lanes and connections; a one-line error if it cannot be read."""
+    """The net with internal lanes, connections and traffic-light programs; a one-line error
+    if it cannot be read."""
     require_net(net_path)
     try:
         with cyclic_gc_paused():
-            return sumolib.net.readNet(str(net_path), withInternal=True)
+            return sumolib.net.readNet(str(net_path), withInternal=True, withPrograms=True)
     except Exception as exc:  # sumolib raises whatever its SAX handler hits
         raise RoadweaverError(f"cannot read SUMO network {net_path}: {exc}") from exc
 

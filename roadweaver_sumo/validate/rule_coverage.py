@@ -26,7 +26,7 @@ APPROACH_RULES = {"O": "signalised", "o": "signalised", "G": "signalised", "g": 
 def rule_coverage(net: sumolib.net.Net) -> dict:
     """Junctions by control (SUMO node type; places where at least three roads meet), turns
     into junctions by the rule that governs them, one-way road edges, turn bays (approaches
-    to a light that gain lanes shortly before it), pedestrian crossings
+    to a light that gain lanes shortly before it), protected left turns, pedestrian crossings
     (at lights, or zebras where pedestrians go first), the speed limits in km/h and the
     speed-limit changes where a road goes straight on into one of another limit."""
     controls = Counter(node.getType() for node in road_junctions(net)
@@ -49,6 +49,7 @@ def rule_coverage(net: sumolib.net.Net) -> dict:
             "turns_by_rule": dict(sorted(approaches.items())),
             "one_way_edges": one_way,
             "turn_bays": sum(_opens_a_bay(edge) for edge in road_edges(net)),
+            "protected_lefts": _protected_lefts(net),
             "pedestrian_crossings": dict(sorted(crossings.items())),
             "speed_limits_kmh": sorted({round(e.getSpeed() * 3.6) for e in road_edges(net)}),
             "speed_limit_changes": changes}
@@ -103,6 +104,21 @@ def _opens_a_bay(edge) -> bool:
     return any(e.getLaneNumber() < edge.getLaneNumber() for e in before)
 
 
+def _protected_lefts(net: sumolib.net.Net) -> int:
+    """Left turns at traffic lights that have a phase of their own (green without yielding to
+    oncoming traffic, ``G``): netconvert gives one where the turn has a lane to itself, as in a
+    turn bay. Needs the net read with its programs."""
+    count = 0
+    for tls in net.getTrafficLights():
+        states = [phase.state for program in tls.getPrograms().values()
+                  for phase in program.getPhases()]
+        for into, out, index in tls.getConnections():
+            left = any(c.getToLane() == out and c.getDirection() in "lL"
+                       for c in into.getOutgoing())
+            count += left and any(state[index] == "G" for state in states)
+    return count
+
+
 def _neighbours(node) -> set[str]:
     """The other road junctions this one has a road to or from."""
     return ({e.getFromNode().getID() for e in node.getIncoming() if not e.isSpecial()} |
@@ -116,7 +132,8 @@ def rule_lines(rules: dict) -> list[str]:
         return ", ".join(f"{kind} x{n}" for kind, n in figures.items()) or "none"
 
     turns = (f"turns by rule: {counts(rules['turns_by_rule'])}; one-way edges "
-             f"{rules['one_way_edges']}; turn bays {rules.get('turn_bays', 0)}; speed limits "
+             f"{rules['one_way_edges']}; turn bays {rules.get('turn_bays', 0)}, protected lefts "
+             f"{rules.get('protected_lefts', 0)}; speed limits "
              f"{rules['speed_limits_kmh']} km/h, "
              f"{rules['speed_limit_changes']} changes; pedestrian crossings "
              f"{counts(rules.get('pedestrian_crossings', {}))}")
