@@ -140,6 +140,7 @@ def test_pedestrians_walk_on_them_to_their_end(tmp_path):
     people = etree.parse(str(out / "persons.rou.xml")).getroot().findall("person")
     assert [p.get("id") for p in people] == [f"ped{i}" for i in range(40)]
     assert "persons.rou.xml" in (out / "scenario.sumocfg").read_text()
+    assert not [p.name for p in out.iterdir() if ".tmp" in p.name]  # no routing leftovers
 
 
 def test_persons_without_sidewalks_is_a_one_line_error(tmp_path, capsys):

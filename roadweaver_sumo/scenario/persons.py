@@ -72,7 +72,7 @@ def _sample(out_dir: Path, net_file: str, persons: int, duration: float,
         if not (out_dir / _SAMPLE).exists():
             break
         run([binary("duarouter"), "-n", net_file, "-r", _SAMPLE, "-o", _ROUTED,
-             "--ignore-errors", "--no-warnings", "--no-step-log", "--seed", str(seed)],
+             "--alternatives-output", "NUL", "--ignore-errors", "--no-warnings", "--no-step-log", "--seed", str(seed)],
             out_dir, "duarouter (walks)")
         sampled = [person for person in etree.parse(str(out_dir / _ROUTED)).getroot()
                    .iter("person") if sum(length[e] for e in person.find("walk").get(
