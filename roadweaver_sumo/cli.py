@@ -224,15 +224,17 @@ def _finish(folder: Path, report: dict | None, as_json: bool, verb: str) -> int:
 
 def _make_suite(args) -> int:
     from .suite import MANIFEST_FILE, Progress, SuiteSpec, make_suite
+    from .suite.coverage import parse_min_coverage
     from .suite.grid import parse_densities, parse_seeds, parse_styles
 
     width, height = parse_size(args.size)
+    minimum = parse_min_coverage(args.min_coverage) if args.min_coverage is not None else {}
     suite = SuiteSpec(densities=parse_densities(args.densities), styles=parse_styles(args.styles),
                       seeds=parse_seeds(args.seeds), width=width, height=height,
                       vehicles=args.vehicles, duration=args.duration, skeleton=args.skeleton,
                       boundary=args.boundary, **_rule_and_demand_fields(args),
-                      ego_routes=args.ego_routes,
-                      ego_length=args.ego_length)  # fmt: skip
+                      ego_routes=args.ego_routes, ego_length=args.ego_length,
+                      min_coverage=minimum)  # fmt: skip
     total = len(suite.scenarios())
     progress = Progress(total, enabled=not (args.quiet or args.json))
     start = time.monotonic()

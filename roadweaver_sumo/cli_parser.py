@@ -271,6 +271,11 @@ def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:
     suite.add_argument("--ego-length", type=_number(float, MIN_EGO_LENGTH_M, MAX_EGO_LENGTH_M),
                        default=make.get_default("ego_length"),
                        help="length of each ego route in metres (± 10 %%)")
+    suite.add_argument("--min-coverage", metavar="KIND=N[,KIND=N]",
+                       help="every scenario holds at least N of each rule situation (a junction "
+                       "control such as traffic_light or allway_stop, one_way_edges, turn_bays, "
+                       "protected_lefts, pedestrian_crossings, speed_limit_changes); one that "
+                       "falls short is built again with its next seed (+1000), up to 8 times")
     suite.add_argument("--out", type=Path, required=True, help="suite folder")
     suite.add_argument("--force", action="store_true", help="replace an existing suite folder")
     suite.add_argument("--engine", default="local", metavar="{local,ray}",

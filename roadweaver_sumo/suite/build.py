@@ -10,6 +10,7 @@ no shared file system.
 from __future__ import annotations
 
 import json
+import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +19,7 @@ from .. import __version__
 from ..errors import RoadweaverError
 from ..spec import ScenarioSpec
 from ..staging import staged_folder
+from .coverage import MAX_RESEEDS, reseeded, shortfall
 from .engines import check_engine, cores_busy, run_jobs
 from .grid import SuiteSpec
 from .manifest import MANIFEST_FILE, error_entry, manifest_text, scenario_entry
@@ -67,13 +69,51 @@ def make_suite(
 
         local = engine != "ray"  # Ray workers may sit on other machines: files come back
         busy = cores_busy(engine, workers)
-        jobs = [(spec.to_json(), str(tmp / name) if local else None, busy)
-                for name, spec in specs.items()]
+
+        def build(batch: dict[str, ScenarioSpec]) -> None:
+            jobs = [(spec.to_json(), str(tmp / name) if local else None, busy)
+                    for name, spec in batch.items()]
+            run_jobs(build_job, jobs, on_result, engine=engine, workers=workers, address=address)
+
         where = f"Ray{f' at {address}' if address else ''}" if engine == "ray" else "local workers"
-        progress.say(f"building {len(jobs)} scenarios on {where} into {out_dir}")
-        run_jobs(build_job, jobs, on_result, engine=engine, workers=workers, address=address)
+        progress.say(f"building {len(specs)} scenarios on {where} into {out_dir}")
+        build(specs)
+        if suite.min_coverage:
+            _meet_coverage(suite.min_coverage, specs, entries, tmp, build, progress)
         (tmp / MANIFEST_FILE).write_text(manifest_text(suite, entries), encoding="utf-8")
     return SuiteResult(out_dir, entries)
+
+
+def _meet_coverage(minimum: dict[str, int], specs: dict[str, ScenarioSpec],
+                   entries: dict[str, dict], tmp: Path, build, progress: Progress) -> None:
+    """Build passing scenarios that lack ``minimum`` again with their next seeds
+    (``coverage.reseeded``) until each has it or ``MAX_RESEEDS`` tries are spent; one still
+    short then fails with what it lacks. ``specs`` and ``entries`` change in place."""
+    origin = dict(specs)
+    for attempt in range(1, MAX_RESEEDS + 1):
+        short = [name for name in list(specs)
+                 if entries[name]["passed"] and shortfall(tmp / name, minimum)]
+        if not short:
+            return
+        batch = {}
+        for name in short:
+            spec = reseeded(origin[name], attempt)
+            if spec.name in specs:  # the grid has that seed already
+                continue
+            progress.say(f"{name} lacks {', '.join(shortfall(tmp / name, minimum))}: "
+                         f"building seed {spec.seed} instead")
+            shutil.rmtree(tmp / name)
+            del specs[name], entries[name]
+            specs[spec.name], origin[spec.name] = spec, origin.pop(name)
+            batch[spec.name] = spec
+        progress.total += len(batch)
+        build(batch)
+    for name in specs:
+        lacking = entries[name]["passed"] and shortfall(tmp / name, minimum)
+        if lacking:
+            entries[name]["passed"] = False
+            entries[name]["failures"].append(
+                f"coverage after {MAX_RESEEDS} more seeds: {', '.join(lacking)}")
 
 
 def build_job(job: tuple[str, str | None, bool]) -> tuple[str, str | None, dict | None]:

@@ -20,6 +20,7 @@ from ..spec import (
     UNSAID,
     ScenarioSpec,
 )
+from .coverage import parse_min_coverage
 
 MAX_SCENARIOS = 10_000  # a larger grid is almost certainly a typo such as --seeds 0-99999
 
@@ -47,9 +48,15 @@ class SuiteSpec:
     fringe_factor: float = 1.0
     ego_routes: int = 0
     ego_length: float = DEFAULT_EGO_LENGTH_M
+    #: every scenario holds at least this many of each rule situation (``suite.coverage``)
+    min_coverage: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         _normalise(self)
+        if not isinstance(self.min_coverage, dict):
+            raise RoadweaverError("min_coverage must map rule situations to counts")
+        if self.min_coverage:  # checked as the command line's text is
+            parse_min_coverage(",".join(f"{k}={v}" for k, v in self.min_coverage.items()))
         for name in ("densities", "styles", "seeds"):
             values = getattr(self, name)
             if not isinstance(values, tuple) or not values:
@@ -69,7 +76,7 @@ class SuiteSpec:
     def scenarios(self) -> list[ScenarioSpec]:
         """One spec per (density, style, seed); every other field is the same for all."""
         shared = {f.name: getattr(self, f.name) for f in fields(self)
-                  if f.name not in ("densities", "styles", "seeds")}
+                  if f.name not in ("densities", "styles", "seeds", "min_coverage")}
         return [ScenarioSpec(density=d, style=style, seed=s,
                              **shared | {"vehicle_mix": dict(self.vehicle_mix)})
                 for d in self.densities for style in self.styles for s in self.seeds]
@@ -84,6 +91,8 @@ class SuiteSpec:
                 del data[name]
         if not self.ego_routes:
             del data["ego_routes"], data["ego_length"]
+        if not self.min_coverage:
+            del data["min_coverage"]
         return {k: list(v) if isinstance(v, tuple) else v for k, v in data.items()}
 
     @classmethod

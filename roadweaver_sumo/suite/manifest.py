@@ -10,6 +10,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+from collections import Counter
 from importlib import metadata
 from pathlib import Path, PurePosixPath
 
@@ -17,6 +18,7 @@ from .. import __version__
 from ..errors import RoadweaverError
 from ..spec import DEFAULT_GEO_ORIGIN, ScenarioSpec
 from ..validate.report import THRESHOLDS
+from .coverage import MAX_RESEEDS, reseeded
 from .grid import SuiteSpec
 
 MANIFEST_FILE = "manifest.json"
@@ -125,10 +127,19 @@ def read_manifest(folder: Path) -> tuple[SuiteSpec, dict]:
     scenarios = data.get("scenarios")
     if not isinstance(scenarios, dict):
         raise RoadweaverError(f"{path}: 'scenarios' must be an object")
-    expected = {spec.name for spec in suite.scenarios()}
-    for name in sorted(set(scenarios) ^ expected):
-        where = "lists" if name in scenarios else "lacks"
-        raise RoadweaverError(f"{path}: the manifest {where} scenario {name!r}, its suite does not")
+    # a suite with a minimum coverage may hold a grid scenario built with a later seed
+    tries = range(MAX_RESEEDS + 1) if suite.min_coverage else range(1)
+    grid = {spec.name: spec for spec in suite.scenarios()}
+    stands_for = {reseeded(spec, k).name: name for name, spec in grid.items() for k in tries}
+    for name in sorted(set(scenarios) - set(stands_for)):
+        raise RoadweaverError(f"{path}: the manifest lists scenario {name!r}, its suite does not")
+    held = Counter(stands_for[name] for name in scenarios)
+    for name in grid:
+        if not held[name]:
+            raise RoadweaverError(f"{path}: the manifest lacks scenario {name!r}, its suite "
+                                  "does not")
+        if held[name] > 1:
+            raise RoadweaverError(f"{path}: the manifest holds scenario {name!r} twice")
     for name, entry in scenarios.items():
         _check_entry(path, name, entry)
     if not isinstance(data.get("environment", {}), dict):
