@@ -1,5 +1,6 @@
-"""Left-turn bays on the approaches to traffic lights (``hdmap.turn_bays``): in the HD map, in
-SUMO's net as netconvert builds it, and in the report's rule coverage."""
+"""Where a road gains or loses lanes: left-turn bays on the approaches to traffic lights
+(``hdmap.turn_bays``) and zipper merges (``hdmap.control``), in the HD map, in SUMO's net as
+netconvert builds it, and in the report's rule coverage."""
 
 from __future__ import annotations
 
@@ -102,3 +103,18 @@ def test_sumo_builds_the_bays_with_the_hd_maps_tapers_and_protected_lefts(hd, tm
         edge = net.getEdge(f"r{road.id}_{road.bay}")
         left = edge.getLanes()[-1]
         assert {c.getDirection() for c in left.getOutgoing()} == {"l"}
+
+
+def test_a_road_that_loses_a_lane_at_a_two_arm_node_is_a_zipper_merge(tmp_path):
+    """An arterial going on as a collector: its two lanes take turns into one (SUMO's zipper
+    links, ``Z``, each yielding to the other), counted as a zipper junction."""
+    G = _graph({0: (50, 300), 1: (300, 300), 2: (550, 300)},
+               [(0, 1, "arterial"), (1, 2, "collector")], size=600.0)
+    hd = build_hdmap(G, (48.137, 11.575))
+    assert hd.junctions[1].type == "zipper"
+    net = sumolib.net.readNet(str(write_map_files(hd, tmp_path)["sumo"]), withInternal=True)
+    merging = [c for lane in net.getEdge("r0_f").getLanes() for c in lane.getOutgoing()]
+    assert sorted((c.getFromLane().getIndex(), c.getToLane().getIndex(), c.getState())
+                  for c in merging) == [(0, 0, "Z"), (1, 0, "Z")]
+    assert {c.link_state for c in hd.connectors() if c.junction == 1} == {"Z", "M"}
+    assert rule_coverage(net)["junction_controls"] == {"zipper": 1}

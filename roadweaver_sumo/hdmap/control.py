@@ -16,7 +16,9 @@ common, judged by the classes of the roads meeting and the number of arms:
 
 Traffic lights are the same in every set: where two arterials cross or meet, or an arterial
 crosses a collector (``signalised``), on maps dense enough for lights. Dead ends are
-``dead_end``, and a road that just goes on through a two-arm node is ``priority``. The names
+``dead_end``; a road that just goes on through a two-arm node is ``priority``, or ``zipper``
+where it loses a lane there (an arterial going on as a collector: its two lanes take turns
+into one, as SUMO's zipper merge and German law, StVO 7(4), have it). The names
 are SUMO's node types; netconvert turns them into each link's right of way, which
 ``right_of_way`` carries to OpenDRIVE and lanelet2.
 """
@@ -24,9 +26,10 @@ are SUMO's node types; netconvert turns them into each link's right of way, whic
 from __future__ import annotations
 
 from ..spec import DEFAULT_RULES
+from .lanes import LANE_CONFIGS
 
 CONTROLS = ("traffic_light", "priority", "priority_stop", "right_before_left", "allway_stop",
-            "dead_end")
+            "zipper", "dead_end")
 
 
 def junction_control(classes: list[str], rules: str = DEFAULT_RULES,
@@ -37,8 +40,9 @@ def junction_control(classes: list[str], rules: str = DEFAULT_RULES,
         return "dead_end"
     if traffic_lights and signalised(classes):
         return "traffic_light"
-    if degree == 2:  # a road that just goes on (its class may change): nothing to control
-        return "priority"
+    if degree == 2:  # a road that just goes on (its class may change)
+        lanes = {LANE_CONFIGS[c].lanes for c in classes}
+        return "zipper" if len(lanes) > 1 else "priority"
     locals_only = set(classes) == {"local"}
     minor_roads = set(classes) <= {"local", "collector"}
     if rules == "de":

@@ -24,13 +24,14 @@ APPROACH_RULES = {"O": "signalised", "o": "signalised", "G": "signalised", "g": 
 
 
 def rule_coverage(net: sumolib.net.Net) -> dict:
-    """Junctions by control (SUMO node type; places where at least three roads meet), turns
+    """Junctions by control (SUMO node type; places where at least three roads meet, and
+    zipper merges where a road loses a lane), turns
     into junctions by the rule that governs them, one-way road edges, turn bays (approaches
     to a light that gain lanes shortly before it), protected left turns, pedestrian crossings
     (at lights, or zebras where pedestrians go first), the speed limits in km/h and the
     speed-limit changes where a road goes straight on into one of another limit."""
     controls = Counter(node.getType() for node in road_junctions(net)
-                       if len(_neighbours(node)) >= 3)
+                       if len(_neighbours(node)) >= 3 or node.getType() == "zipper")
     approaches: Counter = Counter()
     changes = 0
     for edge in road_edges(net):
