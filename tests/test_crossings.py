@@ -10,9 +10,9 @@ import pytest
 import sumolib
 from crossing_check import crossings
 
+from roadweaver_sumo.clearance import clearance, roads_too_close
 from roadweaver_sumo.expand import BORDER_MARGIN, MIN_ANGLE, MIN_EDGE
 from roadweaver_sumo.expand.cleanup import clean
-from roadweaver_sumo.expand.clearance import clearance, roads_too_close
 from roadweaver_sumo.expand.planar import build_planar_graph
 from roadweaver_sumo.pipeline import make_scenario
 from roadweaver_sumo.spec import ScenarioSpec

@@ -295,8 +295,8 @@ def test_a_jog_or_a_corner_by_a_curve_is_rounded_wide_enough_for_its_lanes(road)
 def test_a_jog_stays_where_one_corner_would_crowd_another_road():
     """Merging a jog's corners moves the road by up to half their leg: where that brings it
     within another road's clearance, its corners are only rounded."""
+    from roadweaver_sumo.clearance import roads_too_close
     from roadweaver_sumo.expand.bends import round_corners, smooth_bends
-    from roadweaver_sumo.expand.clearance import roads_too_close
     from roadweaver_sumo.roadgraph import add_road, new_road_graph
 
     jog = np.array([[0.0, 0.0], [100.0, 0.0], [103.0, 5.2], [200.0, 5.2]])

@@ -15,13 +15,13 @@ import numpy as np
 import shapely
 import shapely.ops
 
+from ..clearance import half_width, roads_too_close
 from ..hdmap.lanes import LANE_CONFIGS
 from ..metrics import SHARP_BEND_DEG, SHARP_BEND_REACH_M, sharp_bend_at, sharp_bend_roads
 from ..roadgraph import (
     edge_list,
     sorted_edge_list,
 )
-from .clearance import half_width, roads_too_close
 from .planar import road_lines
 
 

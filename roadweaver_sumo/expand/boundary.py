@@ -23,9 +23,9 @@ import networkx as nx
 import numpy as np
 import shapely
 
+from ..clearance import clearance
 from ..roadgraph import add_road, edge_coords, edge_list
 from ..spec import TOWN_MARGIN
-from .clearance import clearance
 from .fill import on_cycle
 from .perimeter import components_main_first
 from .planar import CLASS_RANK, road_lines

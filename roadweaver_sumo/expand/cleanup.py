@@ -16,9 +16,9 @@ import networkx as nx
 import numpy as np
 import shapely
 
+from ..clearance import roads_too_close
 from ..roadgraph import add_road, edge_coords, edge_length, sorted_edge_list
 from .bends import smooth_bends
-from .clearance import roads_too_close
 from .junction_angles import HAIRPIN_ANGLE, meeting_angle, remove_sharp_angles
 from .junction_merge import contract_short_edges, merge_close_nodes
 from .node_sweep import sweep_nodes

@@ -11,7 +11,7 @@ from .model import HDMap, Road
 from .movements import junction_plan
 from .one_way import choose_one_way
 from .topology import add_successor_links, repair_topology
-from .turn_bays import add_turn_bays
+from .turn_bays import TAPER_LENGTH, add_turn_bays
 
 #: A junction whose turn bends tighter than half its lane's width (its inner lane edge folds
 #: over where a reader offsets the lane from its centre line) grows by this factor, up to
@@ -48,7 +48,7 @@ def build_hdmap(
     hd.roads = make_roads(G, sidewalk_width)  # RefineRoadGraph, AssignLaneConfig
     choose_one_way(G, hd.roads, one_way_share)
     nodes = {n: G.nodes[n]["xy"] for n in G.nodes}
-    tapers = frozenset(n for n, taper in G.nodes(data="taper") if taper)
+    tapers = {n: TAPER_LENGTH / 2 for n, taper in G.nodes(data="taper") if taper}
     hd.junctions = make_junctions(nodes, hd.roads, traffic_lights, rules, tapers)
     roads, junctions = list(hd.roads.values()), list(hd.junctions)
     for _ in range(WIDEN_ROUNDS + 1):

@@ -24,7 +24,6 @@ from .geometry import (
 from .lanes import BEND_MARGIN, LaneEnds, half_width, lane_ends
 from .model import HDMap, Junction, Lane, Road
 from .reference import Piece, plan_points
-from .turn_bays import TAPER_LENGTH
 
 MIN_RADIUS = 2.0  # m: room for a connector even where a road just continues (degree-2 nodes)
 MARGIN = 1.0  # m: clearance added beyond the point where road edges meet
@@ -83,11 +82,12 @@ def junction_radii(directions: np.ndarray, half_widths: np.ndarray, lane_widths:
 
 def make_junctions(
     nodes: dict[int, tuple[float, float]], roads: dict[int, Road], traffic_lights: bool = True,
-    rules: str = DEFAULT_RULES, tapers: frozenset[int] = frozenset(),
+    rules: str = DEFAULT_RULES, tapers: dict[int, float] | None = None,
 ) -> dict[int, Junction]:
     """One junction per node with its incident roads, control (``control``) and trim
-    radius; at a taper node (``turn_bays``) the through lanes move aside over
-    ``TAPER_LENGTH``, so the lane ends stay back half that."""
+    radius; ``tapers``: the taper nodes of turn bays (``turn_bays``) and the radius each
+    needs, where the through lanes move aside."""
+    tapers = tapers or {}
     incident: dict[int, list[int]] = defaultdict(list)
     for road in roads.values():
         incident[road.from_node].append(road.id)
@@ -103,7 +103,7 @@ def make_junctions(
     radii = junction_radii(dirs, np.array([half_width(road) for road in arms]),
                            np.array([road.lane_width for road in arms]),
                            [len(rids) for rids in incidents])
-    radii = [max(radius, TAPER_LENGTH / 2) if node in tapers else radius
+    radii = [max(radius, tapers.get(node, 0.0))
              for node, radius in zip(nodes_in_order, radii, strict=True)]
     return {
         node: Junction(

@@ -7,7 +7,9 @@ before the junction, a bay that fills and spills back, left-turners waiting for 
 traffic beside moving cars.
 
 A bay is a road of its own in the road graph: the last ``BAY_LENGTH`` metres of the approach
-are split off at a two-arm *taper* node, and the driving direction of that piece that arrives
+(more where the light's junction is wide, as where arms meet at acute angles: a junction trim
+takes at most ``lanes.MAX_TRIM_SHARE`` of a road, and the bay road must leave it all) are split
+off at a two-arm *taper* node, and the driving direction of that piece that arrives
 at the light has one lane more than its class (``Road.bay``): the leftmost, which alone turns
 left there (``movements.lane_plan``: one left-turn lane, the others straight on). At the taper
 node the through lanes move one lane to the right over ``TAPER_LENGTH`` metres (the junction
@@ -24,41 +26,63 @@ import numpy as np
 import shapely
 from shapely.ops import substring
 
+from .. import clearance  # a module: clearance imports hdmap.lanes, which loads this package
 from .control import junction_control
 from .geometry import dedupe, signed_angles
+from .junctions import HEADING_PROBE, junction_radii
+from .lanes import LANE_CONFIGS, MAX_TRIM_SHARE
 from .movements import SHARP_LEFT_MAX, STRAIGHT_MAX
 
 BAY_LENGTH = 90.0  # m from the signalised junction's centre to the taper node
 TAPER_LENGTH = 30.0  # m: the taper junction, over which the through lanes move aside
 MIN_LEFT_OVER = 60.0  # m of road left beyond the taper node
 BAY_CLASSES = ("arterial", "collector")
-HEADING_PROBE = 10.0  # m along a road used to measure its direction at a junction
+#: a junction grows by up to this factor where a turn would fold (``build.WIDEN_FACTOR`` ** 2)
+GROWTH_ROOM = 1.6
 
 
 def add_turn_bays(G: nx.Graph, rules: str, traffic_lights: bool = True) -> nx.Graph:
     """``G`` with a bay road split off every approach to a traffic light that has a left
     turn there, is of a ``BAY_CLASSES`` class and long enough; the bay road's edge carries
-    ``bay_to`` (the signalised node) and each taper node ``taper=True``. ``G`` itself is
-    returned where no approach gets a bay, else a copy."""
-    wanted: dict[tuple[int, int], list[int]] = {}
+    ``bay_to`` (the signalised node) and each taper node ``taper=True``. A bay whose wider
+    road would come within another road's clearance (``clearance.roads_too_close``) is left
+    out. ``G`` itself is returned where no approach gets a bay, else a copy."""
+    wanted: dict[tuple[int, int], dict[int, float]] = {}  # edge -> {light: bay length}
     for node in sorted(G.nodes):
         arms = sorted(G.edges(node))
         classes = [G.edges[e]["road_class"] for e in arms]
         if junction_control(classes, rules, traffic_lights) != "traffic_light":
             continue
-        for (u, v), has_left in zip(arms, _left_turns(G, node, arms), strict=True):
-            if has_left and G.edges[u, v]["road_class"] in BAY_CLASSES:
-                wanted.setdefault(tuple(sorted((u, v))), []).append(node)
+        leaving = np.array([_leaving(G, node, arm) for arm in arms])
+        bayed = [has_left and cls in BAY_CLASSES
+                 for has_left, cls in zip(_left_turns(leaving), classes, strict=True)]
+        length = _bay_length(leaving, classes, bayed)
+        for (u, v), bay in zip(arms, bayed, strict=True):
+            if bay:
+                wanted.setdefault(tuple(sorted((u, v))), {})[node] = length
     bays = {edge: ends for edge, ends in wanted.items()
-            if _length(G, edge) >= len(ends) * BAY_LENGTH + MIN_LEFT_OVER}
-    if not bays:
-        return G
+            if _length(G, edge) >= sum(ends.values()) + MIN_LEFT_OVER}
+    while bays:  # leave out the bays whose wider road comes too close to another road
+        split, bay_of = _split(G, bays)
+        crowded = {bay_of[e] for pair in clearance.roads_too_close(split, among=set(bay_of))
+                   for e in pair if e in bay_of}
+        if not crowded:
+            return split
+        bays = {edge: ends for edge, ends in bays.items() if edge not in crowded}
+    return G
+
+
+def _split(G: nx.Graph, bays: dict[tuple[int, int], dict[int, float]]):
+    """A copy of ``G`` with each edge of ``bays`` split at a taper node the bay length
+    before each light it leads to; returns it and, per bay road (sorted edge), its edge in
+    ``G``."""
     G = G.copy()
+    bay_of = {}
     next_node = max(G.nodes) + 1
     for (u, v), ends in sorted(bays.items()):
         data = G.edges[u, v]
         line = shapely.LineString(data["coords"] if data["start"] == u else data["coords"][::-1])
-        cuts = [BAY_LENGTH if end == u else line.length - BAY_LENGTH for end in ends]
+        cuts = [s if end == u else line.length - s for end, s in ends.items()]
         stops = sorted(cuts)
         nodes = [u, *range(next_node, next_node + len(stops)), v]
         next_node += len(stops)
@@ -73,14 +97,26 @@ def add_turn_bays(G: nx.Graph, rules: str, traffic_lights: bool = True) -> nx.Gr
             attrs = {"coords": piece, "road_class": data["road_class"], "start": a}
             if a in ends or b in ends:
                 attrs["bay_to"] = a if a in ends else b
+                bay_of[(min(a, b), max(a, b))] = (u, v)
             G.add_edge(a, b, **attrs)
-    return G
+    return G, bay_of
 
 
-def _left_turns(G: nx.Graph, node: int, arms: list[tuple[int, int]]) -> list[bool]:
-    """Whether traffic arriving along each of ``arms`` can turn left at ``node``: another arm
-    leaves between ``STRAIGHT_MAX`` and ``SHARP_LEFT_MAX`` to the left of its way ahead."""
-    leaving = np.array([_leaving(G, node, arm) for arm in arms])
+def _bay_length(leaving: np.ndarray, classes: list[str], bayed: list[bool]) -> float:
+    """How long the bay roads of one light's junction are: ``BAY_LENGTH``, or long enough
+    that their trim at the junction (its radius with the bays' extra lanes, and room to grow)
+    stays within ``MAX_TRIM_SHARE`` of them."""
+    configs = [LANE_CONFIGS[c] for c in classes]
+    widths = [c.half_width + c.width * bay for c, bay in zip(configs, bayed, strict=True)]
+    radius = junction_radii(leaving, np.array(widths), np.array([c.width for c in configs]),
+                            [len(classes)])[0]
+    return max(BAY_LENGTH, GROWTH_ROOM * radius / MAX_TRIM_SHARE)
+
+
+def _left_turns(leaving: np.ndarray) -> list[bool]:
+    """Whether traffic arriving along each arm of a junction (``leaving``: the unit directions
+    in which they leave it) can turn left: another arm leaves between ``STRAIGHT_MAX`` and
+    ``SHARP_LEFT_MAX`` to the left of its way ahead."""
     found = []
     for k, direction in enumerate(leaving):
         angles = signed_angles(-direction, np.delete(leaving, k, axis=0))

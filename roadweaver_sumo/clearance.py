@@ -8,7 +8,9 @@ meets another at too sharp an angle (paper §III-C, clean-up): the road less wor
 and the density control places local roads elsewhere.
 
 The clearance of two roads is the sum of their half widths (lanes x lane width of their class,
-``hdmap.lanes.LANE_CONFIGS``) plus :data:`MARGIN`. Near a junction two roads are close by
+``hdmap.lanes.LANE_CONFIGS``, a lane more on a turn bay's road: ``hdmap.turn_bays``) plus
+:data:`MARGIN`. The expansion's clean-up keeps roads apart by it, and the turn bays are only
+added where their wider roads keep it too. Near a junction two roads are close by
 nature: within :data:`JUNCTION_REACH` clearances of a junction node of either road they may
 come closer (the junction's shape covers that ground in every export); beyond it they may not,
 and two roads that leave a junction side by side and stay so are an overlap.
@@ -20,8 +22,8 @@ import networkx as nx
 import numpy as np
 import shapely
 
-from ..hdmap.lanes import LANE_CONFIGS
-from ..roadgraph import sorted_edge_list
+from .hdmap.lanes import LANE_CONFIGS
+from .roadgraph import sorted_edge_list
 
 MARGIN = 1.0  # metres of open ground between the outer edges of two roads' lanes
 MIN_CONTACT = 0.5  # metres: shorter contacts are numerical touches at a junction's rim
@@ -55,7 +57,7 @@ def roads_too_close(G: nx.Graph, among: set | None = None) -> list[tuple[tuple, 
         return []
     edges = [(u, v) if u <= v else (v, u) for u, v, _ in roads]
     lines = np.array([shapely.LineString(data["coords"]) for _, _, data in roads])
-    half = np.array([LANE_CONFIGS[data["road_class"]].half_width for _, _, data in roads])
+    half = np.array([_half_width(data) for _, _, data in roads])
     widest = 2 * half.max() + MARGIN
     asked = np.arange(len(edges)) if among is None else np.flatnonzero(
         [edge in among for edge in edges])
@@ -75,6 +77,12 @@ def roads_too_close(G: nx.Graph, among: set | None = None) -> list[tuple[tuple, 
         if inside >= MIN_CONTACT:
             pairs.append((edges[a], edges[b]))
     return pairs
+
+
+def _half_width(data: dict) -> float:
+    """Metres from a road's centreline to the outer edge of its lanes on its wider side."""
+    config = LANE_CONFIGS[data["road_class"]]
+    return config.half_width + config.width * ("bay_to" in data)
 
 
 def _outside_junctions(G: nx.Graph, edges: list[tuple], i: np.ndarray, j: np.ndarray,
