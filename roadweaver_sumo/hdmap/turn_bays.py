@@ -28,7 +28,7 @@ from shapely.ops import substring
 
 from .. import clearance  # a module: clearance imports hdmap.lanes, which loads this package
 from .control import junction_control
-from .geometry import dedupe, signed_angles
+from .geometry import dedupe, end_directions, signed_angles
 from .junctions import HEADING_PROBE, junction_radii
 from .lanes import LANE_CONFIGS, MAX_TRIM_SHARE
 from .movements import SHARP_LEFT_MAX, STRAIGHT_MAX
@@ -125,13 +125,10 @@ def _left_turns(leaving: np.ndarray) -> list[bool]:
 
 
 def _leaving(G: nx.Graph, node: int, arm: tuple[int, int]) -> np.ndarray:
-    """Unit direction in which road ``arm`` leaves ``node``."""
+    """Unit direction in which road ``arm`` leaves ``node``, measured as the junctions do."""
     data = G.edges[arm]
-    coords = np.asarray(data["coords"] if data["start"] == node else data["coords"][::-1])
-    line = shapely.LineString(coords)
-    ahead = line.interpolate(min(HEADING_PROBE, line.length / 2))
-    step = np.array([ahead.x, ahead.y]) - coords[0]
-    return step / np.hypot(*step)
+    coords = data["coords"] if data["start"] == node else data["coords"][::-1]
+    return end_directions([coords], HEADING_PROBE)[0]
 
 
 def _length(G: nx.Graph, edge: tuple[int, int]) -> float:
