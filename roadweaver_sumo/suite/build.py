@@ -88,21 +88,29 @@ def _meet_coverage(minimum: dict[str, int], specs: dict[str, ScenarioSpec],
                    entries: dict[str, dict], tmp: Path, build, progress: Progress) -> None:
     """Build passing scenarios that lack ``minimum`` again with their next seeds
     (``coverage.reseeded``) until each has it or ``MAX_RESEEDS`` tries are spent; one still
-    short then fails with what it lacks. ``specs`` and ``entries`` change in place."""
+    short then fails with what it lacks. A seed tried in place of a passing one that fails
+    its checks is tried past too: asking for coverage must not turn a passing scenario into
+    a failing one. ``specs`` and ``entries`` change in place."""
     origin = dict(specs)
+
+    def wanting(name: str) -> str | None:
+        if not entries[name]["passed"]:
+            return None if name in grid else "fails its checks"
+        lacking = shortfall(tmp / name, minimum)
+        return f"lacks {', '.join(lacking)}" if lacking else None
+
+    grid = set(specs)
     for attempt in range(1, MAX_RESEEDS + 1):
-        short = [name for name in list(specs)
-                 if entries[name]["passed"] and shortfall(tmp / name, minimum)]
+        short = {name: why for name in list(specs) if (why := wanting(name))}
         if not short:
             return
         batch = {}
-        for name in short:
+        for name, why in short.items():
             spec = reseeded(origin[name], attempt)
             if spec.name in specs:  # the grid has that seed already
                 continue
-            progress.say(f"{name} lacks {', '.join(shortfall(tmp / name, minimum))}: "
-                         f"building seed {spec.seed} instead")
-            shutil.rmtree(tmp / name)
+            progress.say(f"{name} {why}: building seed {spec.seed} instead")
+            shutil.rmtree(tmp / name, ignore_errors=True)  # none if it could not be made
             del specs[name], entries[name]
             specs[spec.name], origin[spec.name] = spec, origin.pop(name)
             batch[spec.name] = spec
