@@ -34,6 +34,7 @@ from .spec import (
     ScenarioSpec,
     parse_geo_origin,
     parse_size,
+    parse_speeds,
     parse_vehicle_mix,
 )
 from .staging import remove_staged
@@ -102,7 +103,8 @@ def _rule_and_demand_fields(args) -> dict:
     return {"rules": args.rules, "one_way_share": args.one_way_share,
             "sidewalks": args.sidewalks, "persons": args.persons, "bus_lines": args.bus_lines,
             "vehicle_mix": parse_vehicle_mix(args.vehicle_mix), "departures": args.departures,
-            "fringe_factor": args.fringe_factor}
+            "fringe_factor": args.fringe_factor,
+            "speeds": parse_speeds(args.speed) if args.speed is not None else {}}
 
 
 def _make_scenario(args) -> int:

@@ -246,6 +246,10 @@ def _add_rule_and_demand_options(parser: argparse.ArgumentParser) -> None:
                         help=DEPARTURES_HELP)
     parser.add_argument("--fringe-factor", type=_number(float, 0.0, MAX_FRINGE_FACTOR),
                         default=1.0, help=FRINGE_HELP)
+    parser.add_argument("--speed", metavar="CLASS=KMH[,CLASS=KMH]",
+                        help="speed limits by road class, as netgenerate's --speed gives one "
+                             "for all, e.g. arterial=70,local=30; each 5..130 km/h (default: "
+                             "arterial 50, collector 40, local 30)")
 
 
 def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:

@@ -44,7 +44,7 @@ LEGACY_DEPARTURES = "even"
 #: suite built then rebuilds to the same bytes.
 UNSAID = {"rules": LEGACY_RULES, "vehicle_mix": LEGACY_VEHICLE_MIX,
           "departures": LEGACY_DEPARTURES, "fringe_factor": 1.0, "one_way_share": 0.0,
-          "sidewalks": False, "persons": 0, "bus_lines": 0}
+          "sidewalks": False, "persons": 0, "bus_lines": 0, "speeds": {}}
 LEGACY = {"boundary": LEGACY_BOUNDARY, **UNSAID}  # spec.json leaves the ring unsaid too
 MAX_SIDE_M = 50_000.0
 MIN_SIDE_M = 200.0
@@ -57,6 +57,9 @@ MIN_DURATION_S, MAX_DURATION_S = 1.0, 604_800.0  # a week of demand
 MAX_SEED = 2**31 - 1
 MAX_WORKERS = 256  # parallel scenarios of a suite
 MAX_EGO_ROUTES = 100
+#: the road classes (``hdmap.lanes.LANE_CONFIGS``) and the speed limits one may give them
+ROAD_CLASSES = ("arterial", "collector", "local")
+MIN_SPEED_KMH, MAX_SPEED_KMH = 5.0, 130.0
 DEFAULT_EGO_LENGTH_M, MIN_EGO_LENGTH_M, MAX_EGO_LENGTH_M = 5000.0, 200.0, 100_000.0
 DEFAULT_GEO_ORIGIN = (48.137, 11.575)  # lat, lon: only a label for the local metric frame
 #: The structural priors a user may set (``--gridness`` ...), with their ranges as
@@ -88,6 +91,8 @@ class ScenarioSpec:
     #: a sidewalk beside every driving direction, crossings at junctions (``hdmap.lanes``,
     #: ``export.sumo_plain.crossings``)
     sidewalks: bool = False
+    #: speed limits in km/h by road class, where not the class's own (``hdmap.lanes``)
+    speeds: dict = field(default_factory=dict)
     duration: float = 3600.0
     #: vehicle class -> share of the trips; departure times random or evenly spread
     vehicle_mix: dict = field(default_factory=lambda: dict(DEFAULT_VEHICLE_MIX))
@@ -156,6 +161,7 @@ class ScenarioSpec:
             raise RoadweaverError(f"--bus-lines must be a whole number 0..{MAX_BUS_LINES}, got "
                                   f"{self.bus_lines!r}")
         _check_vehicle_mix(self.vehicle_mix)
+        _check_speeds(self.speeds)
         if self.departures not in DEPARTURES:
             raise RoadweaverError(f"unknown departures {self.departures!r}; choose one of "
                                   f"{', '.join(DEPARTURES)}")
@@ -297,15 +303,39 @@ def _check_geo_origin(origin) -> None:
 
 def parse_vehicle_mix(text: str) -> dict[str, float]:
     """``"passenger:0.9,truck:0.1"`` -> {"passenger": 0.9, "truck": 0.1}; checked by the spec."""
-    mix = {}
+    return _named_numbers(text, "--vehicle-mix", ":", "class:share, e.g. truck:0.1")
+
+
+def parse_speeds(text: str) -> dict[str, float]:
+    """``"arterial=60,local=30"`` -> {"arterial": 60.0, "local": 30.0} km/h; checked by the
+    spec."""
+    return _named_numbers(text, "--speed", "=", "class=km/h, e.g. arterial=60")
+
+
+def _named_numbers(text: str, option: str, sep: str, form: str) -> dict[str, float]:
+    """Comma-separated ``name<sep>number`` items as {name: number}; a malformed item is a
+    one-line error saying the ``form`` expected."""
+    found = {}
     for item in str(text).split(","):
-        name, _, share = item.strip().partition(":")
+        name, _, value = item.strip().partition(sep)
         try:
-            mix[name] = float(share)
+            found[name] = float(value)
         except ValueError:
-            raise RoadweaverError(f"--vehicle-mix: {item.strip()!r} is not class:share, e.g. "
-                                  "truck:0.1") from None
-    return mix
+            raise RoadweaverError(f"{option}: {item.strip()!r} is not {form}") from None
+    return found
+
+
+def _check_speeds(speeds) -> None:
+    if not isinstance(speeds, dict):
+        raise RoadweaverError("--speed must map road classes to km/h")
+    for name, value in speeds.items():
+        if name not in ROAD_CLASSES:
+            raise RoadweaverError(f"--speed: unknown road class {name!r}; choose from "
+                                  f"{', '.join(ROAD_CLASSES)}")
+        _check_number(f"--speed {name}", value)
+        if not MIN_SPEED_KMH <= value <= MAX_SPEED_KMH:
+            raise RoadweaverError(f"--speed {name} must be {MIN_SPEED_KMH:g}..{MAX_SPEED_KMH:g} "
+                                  f"km/h, got {value:g}")
 
 
 def _check_vehicle_mix(mix) -> None:

@@ -19,12 +19,15 @@ SIGN_OF = {"traffic_light": "1000001", "stop": "206", "all_way_stop": "206", "yi
 KIND_OF_SUBTYPE = {"de206": "stop", "de205": "yield"}
 
 
-@pytest.fixture(scope="module", params=["de", "us", "de+sidewalks"])
+@pytest.fixture(scope="module", params=["de", "us", "de+sidewalks", "us+speeds"])
 def files(request, tmp_path_factory):
-    rules, _, sidewalks = request.param.partition("+")
+    rules, _, extra = request.param.partition("+")
+    speeds = {"arterial": 70.0, "collector": 60.0} if extra == "speeds" else {}
     spec = rw.ScenarioSpec(density=30, vehicles=1, width=1000, height=1000, seed=1,
-                           skeleton="procedural", rules=rules, sidewalks=bool(sidewalks))
-    return rw.write_map(rw.generate_map(spec), tmp_path_factory.mktemp(rules))
+                           skeleton="procedural", rules=rules, sidewalks=extra == "sidewalks",
+                           speeds=speeds)
+    return {**rw.write_map(rw.generate_map(spec), tmp_path_factory.mktemp(rules)),
+            "speeds": speeds}
 
 
 class Net:
@@ -199,6 +202,8 @@ def test_the_three_formats_hold_the_same_rules(files):
     assert xodr.crossings == net.crossings == osm.crossings  # with --sidewalks: SUMO's
     road_lanes = {lane for lane in net.speed if not lane.startswith(":")}
     assert len(set(net.speed.values())) >= 3, "30, 40 and 50 km/h"
+    limits = {round(net.speed[lane] * 3.6) for lane in road_lanes}
+    assert limits == {30, 40, 50} if not files["speeds"] else {30, 60, 70}  # --speed
     for lane in road_lanes:
         assert xodr.speed[lane] == pytest.approx(net.speed[lane], abs=0.01), lane
         assert osm.speed[lane] == pytest.approx(net.speed[lane], abs=0.01), lane

@@ -6,7 +6,8 @@ import pytest
 
 from roadweaver_sumo.cli import main
 from roadweaver_sumo.errors import RoadweaverError
-from roadweaver_sumo.spec import ScenarioSpec, parse_size
+from roadweaver_sumo.hdmap.lanes import LANE_CONFIGS
+from roadweaver_sumo.spec import ROAD_CLASSES, ScenarioSpec, parse_size
 
 
 def test_parse_size_square_and_rectangle():
@@ -22,6 +23,11 @@ def test_spec_round_trips_through_json(tmp_path):
     path.write_text(spec.to_json())
     assert ScenarioSpec.from_json_file(path) == spec
     assert json.loads(path.read_text())["density"] == 25
+    assert "speeds" not in json.loads(spec.to_json())  # the classes' own: left unsaid
+    assert ROAD_CLASSES == tuple(LANE_CONFIGS)  # the classes --speed names are the HD map's
+    fast = ScenarioSpec(density=25, vehicles=100, speeds={"arterial": 70.0})
+    path.write_text(fast.to_json())
+    assert ScenarioSpec.from_json_file(path) == fast
 
 
 def test_an_open_boundary_is_written_and_a_ring_left_unsaid(tmp_path):
@@ -48,6 +54,12 @@ def test_an_open_boundary_is_written_and_a_ring_left_unsaid(tmp_path):
         (["--density", "nan", "--vehicles", "5"], "density must be > 0"),
         (["--density", "abc", "--vehicles", "5"], "invalid float value"),
         (["--vehicles", "5"], "needs --density (road nodes per km²), or --like FILE"),
+        (["--density", "30", "--vehicles", "5", "--speed", "arterial=200"],
+         "--speed arterial must be 5..130 km/h, got 200"),
+        (["--density", "30", "--vehicles", "5", "--speed", "motorway=80"],
+         "unknown road class 'motorway'"),
+        (["--density", "30", "--vehicles", "5", "--speed", "arterial:80"],
+         "'arterial:80' is not class=km/h"),
         (["--vehicles", "5", "--like", "nowhere.osm.pbf"], "--like: nowhere.osm.pbf not found"),
         (["--density", "30", "--vehicles", "5", "--gridness", "2"], "must be 0..1, got 2"),
         (["--density", "30", "--vehicles", "5", "--ego-routes", "-1"], "must be 0..100"),

@@ -24,6 +24,7 @@ WIDEN_FACTOR, WIDEN_ROUNDS, BAN_ROUNDS = 1.25, 4, 3
 def build_hdmap(
     G: nx.Graph, geo_origin: tuple[float, float] | None = None, *, traffic_lights: bool = True,
     rules: str = DEFAULT_RULES, one_way_share: float = 0.0, sidewalks: bool = False,
+    speeds: dict[str, float] | None = None,
 ) -> HDMap:
     """Build the lane-level HD map of a RoadGraph (paper Algorithm 1).
 
@@ -32,7 +33,8 @@ def build_hdmap(
     the regional ``rules`` (``control.RULES``); ``traffic_lights=False`` leaves out the lights
     (suburban maps). Up to ``one_way_share`` of the local street length becomes one-way
     (``one_way``). ``sidewalks``: every road gets a sidewalk of ``SIDEWALK_WIDTH`` right of
-    each driving direction. Approaches to traffic lights get left-turn bays (``turn_bays``;
+    each driving direction. ``speeds``: speed limits in km/h by road class, where not the
+    class's own (``lanes.LANE_CONFIGS``). Approaches to traffic lights get left-turn bays (``turn_bays``;
     ``HDMap.graph`` is then the road graph with their taper nodes).
     RepairLaneGeometry needs no pass of its own: connectors end exactly on the lanes they join
     and junction trims leave every road a lane section (see ``lanes.MAX_TRIM_SHARE``).
@@ -45,7 +47,7 @@ def build_hdmap(
         graph=G,
     )
     sidewalk_width = SIDEWALK_WIDTH if sidewalks else 0.0
-    hd.roads = make_roads(G, sidewalk_width)  # RefineRoadGraph, AssignLaneConfig
+    hd.roads = make_roads(G, sidewalk_width, speeds)  # RefineRoadGraph, AssignLaneConfig
     choose_one_way(G, hd.roads, one_way_share)
     nodes = {n: G.nodes[n]["xy"] for n in G.nodes}
     tapers = {n: TAPER_LENGTH / 2 for n, taper in G.nodes(data="taper") if taper}

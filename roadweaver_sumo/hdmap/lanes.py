@@ -70,9 +70,11 @@ END_STRAIGHT = 3.0
 END_BEND = 10.0
 
 
-def make_roads(G: nx.Graph, sidewalk_width: float = 0.0) -> dict[int, Road]:
-    """One road per RoadGraph edge with its class's lane configuration (AssignLaneConfig) and
-    sidewalks ``sidewalk_width`` wide (0: none).
+def make_roads(G: nx.Graph, sidewalk_width: float = 0.0,
+               speeds: dict[str, float] | None = None) -> dict[int, Road]:
+    """One road per RoadGraph edge with its class's lane configuration (AssignLaneConfig),
+    sidewalks ``sidewalk_width`` wide (0: none) and the speed limit of its class, or of
+    ``speeds`` (km/h by class) where given.
 
     Roads are numbered in sorted node-pair order so ids do not depend on insertion order;
     centrelines lose zero-length segments (RefineRoadGraph: geometric regularisation).
@@ -90,7 +92,7 @@ def make_roads(G: nx.Graph, sidewalk_width: float = 0.0) -> dict[int, Road]:
             centreline=dedupe(data["coords"]),
             road_class=data["road_class"],
             priority=cfg.priority,
-            speed=cfg.speed,
+            speed=(speeds or {}).get(data["road_class"], cfg.speed * 3.6) / 3.6,
             lane_width=cfg.width,
             sections=[],
             sidewalk_width=sidewalk_width,
@@ -247,7 +249,7 @@ def _directional_lanes(road: Road, direction: str, bounds: np.ndarray, centres: 
             road_class=road.road_class,
             width=w,
             end_width=w,
-            speed=cfg.speed,
+            speed=road.speed,
             centre=centres[k],
             left=bounds[k + 1],
             right=bounds[k],

@@ -41,6 +41,7 @@ class SuiteSpec:
     rules: str = LEGACY_RULES
     one_way_share: float = 0.0
     sidewalks: bool = False
+    speeds: dict = field(default_factory=dict)
     persons: int = 0
     bus_lines: int = 0
     vehicle_mix: dict = field(default_factory=lambda: dict(LEGACY_VEHICLE_MIX))
@@ -78,7 +79,8 @@ class SuiteSpec:
         shared = {f.name: getattr(self, f.name) for f in fields(self)
                   if f.name not in ("densities", "styles", "seeds", "min_coverage")}
         return [ScenarioSpec(density=d, style=style, seed=s,
-                             **shared | {"vehicle_mix": dict(self.vehicle_mix)})
+                             **shared | {"vehicle_mix": dict(self.vehicle_mix),
+                                         "speeds": dict(self.speeds)})
                 for d in self.densities for style in self.styles for s in self.seeds]
 
     def to_dict(self) -> dict:
