@@ -93,7 +93,8 @@ def generate_map(spec: ScenarioSpec) -> HDMap:
         graph = expand_skeleton(spec, make_skeleton(spec))
     return build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights,
                        rules=spec.rules, one_way_share=spec.one_way_share,
-                       sidewalks=spec.sidewalks, speeds=spec.speeds)
+                       sidewalks=spec.sidewalks, speeds=spec.speeds,
+                       roundabouts=spec.roundabouts)
 
 
 def write_map(hdmap: HDMap, folder: str | Path, template: str = "urban") -> dict[str, Path]:

@@ -103,7 +103,7 @@ def _rule_and_demand_fields(args) -> dict:
     return {"rules": args.rules, "one_way_share": args.one_way_share,
             "sidewalks": args.sidewalks, "persons": args.persons, "bus_lines": args.bus_lines,
             "vehicle_mix": parse_vehicle_mix(args.vehicle_mix), "departures": args.departures,
-            "fringe_factor": args.fringe_factor,
+            "fringe_factor": args.fringe_factor, "roundabouts": args.roundabouts,
             "speeds": parse_speeds(args.speed) if args.speed is not None else {}}
 
 

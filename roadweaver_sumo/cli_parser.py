@@ -20,6 +20,7 @@ from .spec import (
     DEFAULT_GEO_ORIGIN,
     DEFAULT_ONE_WAY_SHARE,
     DEFAULT_PERSONS,
+    DEFAULT_ROUNDABOUTS,
     DEFAULT_RULES,
     DEFAULT_VEHICLE_MIX,
     DEPARTURES,
@@ -29,6 +30,7 @@ from .spec import (
     MAX_EGO_LENGTH_M,
     MAX_EGO_ROUTES,
     MAX_FRINGE_FACTOR,
+    MAX_ROUNDABOUTS,
     MAX_SEED,
     MAX_SIDE_M,
     MAX_VEHICLES,
@@ -246,6 +248,10 @@ def _add_rule_and_demand_options(parser: argparse.ArgumentParser) -> None:
                         help=DEPARTURES_HELP)
     parser.add_argument("--fringe-factor", type=_number(float, 0.0, MAX_FRINGE_FACTOR),
                         default=1.0, help=FRINGE_HELP)
+    parser.add_argument("--roundabouts", type=_number(int, 0, MAX_ROUNDABOUTS),
+                        default=DEFAULT_ROUNDABOUTS,
+                        help="up to this many junctions where collectors meet become "
+                             "roundabouts (3 or 4 arms, no light, room for a 15 m ring)")
     parser.add_argument("--speed", metavar="CLASS=KMH[,CLASS=KMH]",
                         help="speed limits by road class, as netgenerate's --speed gives one "
                              "for all, e.g. arterial=70,local=30; each 5..130 km/h (default: "
@@ -277,8 +283,9 @@ def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:
                        help="length of each ego route in metres (± 10 %%)")
     suite.add_argument("--min-coverage", metavar="KIND=N[,KIND=N]",
                        help="every scenario holds at least N of each rule situation (a junction "
-                       "control such as traffic_light or allway_stop, one_way_edges, turn_bays, "
-                       "protected_lefts, pedestrian_crossings, speed_limit_changes); one that "
+                       "control such as traffic_light or allway_stop, roundabouts, one_way_edges, "
+                       "turn_bays, protected_lefts, pedestrian_crossings, speed_limit_changes); "
+                       "one that "
                        "falls short is built again with its next seed (+1000), up to 8 times")
     suite.add_argument("--out", type=Path, required=True, help="suite folder")
     suite.add_argument("--force", action="store_true", help="replace an existing suite folder")

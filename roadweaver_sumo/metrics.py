@@ -24,8 +24,14 @@ CURVATURE_STEP_M = 20.0
 
 
 def road_node_count(G: nx.Graph) -> int:
-    """Number of nodes whose degree is not 2 (intersections and dead ends)."""
-    return sum(1 for _, d in G.degree() if d != 2)
+    """Number of nodes whose degree is not 2 (intersections and dead ends), a roundabout's
+    ring nodes (node attribute ``roundabout``) counted as the one junction they are."""
+    return junction_count(G, (n for n, d in G.degree() if d != 2))
+
+
+def junction_count(G: nx.Graph, nodes) -> int:
+    """How many junctions ``nodes`` are: one per node, one per roundabout."""
+    return len({G.nodes[n].get("roundabout", ("node", n)) for n in nodes})
 
 
 def density(G: nx.Graph, area_km2: float) -> float:
@@ -61,7 +67,7 @@ def cycle_ratio(G: nx.Graph) -> float:
     for comp in nx.biconnected_components(G):
         if len(comp) >= 3:
             on_cycle |= comp
-    return sum(1 for n in on_cycle if G.degree(n) != 2) / total
+    return junction_count(G, (n for n in on_cycle if G.degree(n) != 2)) / total
 
 
 def crossings_without_junction(G: nx.Graph, tolerance: float = 0.5) -> int:

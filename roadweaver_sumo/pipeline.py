@@ -121,7 +121,8 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
 
             hdmap = build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights,
                                 rules=spec.rules, one_way_share=spec.one_way_share,
-                                sidewalks=spec.sidewalks, speeds=spec.speeds)
+                                sidewalks=spec.sidewalks, speeds=spec.speeds,
+                                roundabouts=spec.roundabouts)
         from .export.map_files import write_map_files
 
         write_map_files(hdmap, folder, spec.netconvert_template, timed=stage)

@@ -44,7 +44,7 @@ LEGACY_DEPARTURES = "even"
 #: suite built then rebuilds to the same bytes.
 UNSAID = {"rules": LEGACY_RULES, "vehicle_mix": LEGACY_VEHICLE_MIX,
           "departures": LEGACY_DEPARTURES, "fringe_factor": 1.0, "one_way_share": 0.0,
-          "sidewalks": False, "persons": 0, "bus_lines": 0, "speeds": {}}
+          "sidewalks": False, "persons": 0, "bus_lines": 0, "speeds": {}, "roundabouts": 0}
 LEGACY = {"boundary": LEGACY_BOUNDARY, **UNSAID}  # spec.json leaves the ring unsaid too
 MAX_SIDE_M = 50_000.0
 MIN_SIDE_M = 200.0
@@ -60,6 +60,7 @@ MAX_EGO_ROUTES = 100
 #: the road classes (``hdmap.lanes.LANE_CONFIGS``) and the speed limits one may give them
 ROAD_CLASSES = ("arterial", "collector", "local")
 MIN_SPEED_KMH, MAX_SPEED_KMH = 5.0, 130.0
+DEFAULT_ROUNDABOUTS, MAX_ROUNDABOUTS = 1, 1000
 DEFAULT_EGO_LENGTH_M, MIN_EGO_LENGTH_M, MAX_EGO_LENGTH_M = 5000.0, 200.0, 100_000.0
 DEFAULT_GEO_ORIGIN = (48.137, 11.575)  # lat, lon: only a label for the local metric frame
 #: The structural priors a user may set (``--gridness`` ...), with their ranges as
@@ -93,6 +94,8 @@ class ScenarioSpec:
     sidewalks: bool = False
     #: speed limits in km/h by road class, where not the class's own (``hdmap.lanes``)
     speeds: dict = field(default_factory=dict)
+    #: up to this many junctions made roundabouts (``hdmap.roundabouts``)
+    roundabouts: int = DEFAULT_ROUNDABOUTS
     duration: float = 3600.0
     #: vehicle class -> share of the trips; departure times random or evenly spread
     vehicle_mix: dict = field(default_factory=lambda: dict(DEFAULT_VEHICLE_MIX))
@@ -162,6 +165,10 @@ class ScenarioSpec:
                                   f"{self.bus_lines!r}")
         _check_vehicle_mix(self.vehicle_mix)
         _check_speeds(self.speeds)
+        if isinstance(self.roundabouts, bool) or not isinstance(self.roundabouts, int) or not (
+                0 <= self.roundabouts <= MAX_ROUNDABOUTS):
+            raise RoadweaverError(f"--roundabouts must be a whole number 0..{MAX_ROUNDABOUTS}, "
+                                  f"got {self.roundabouts!r}")
         if self.departures not in DEPARTURES:
             raise RoadweaverError(f"unknown departures {self.departures!r}; choose one of "
                                   f"{', '.join(DEPARTURES)}")

@@ -97,7 +97,8 @@ def test_lanes_follow_their_road_class(hdmap):
         cfg = LANE_CONFIGS[road.road_class]
         for direction in ("f", "b"):
             lanes = [hdmap.lanes[i] for i in road.lanes(direction)]
-            assert [lane.index for lane in lanes] == list(range(cfg.lanes))
+            bay = road.bay == direction  # a turn bay's road: one lane more (turn_bays)
+            assert [lane.index for lane in lanes] == list(range(cfg.lanes + bay))
             assert all(lane.width == cfg.width and lane.speed == cfg.speed for lane in lanes)
 
 

@@ -60,7 +60,7 @@ def _one_line_error(capsys) -> str:
         ({"--workers": "0"}, "--workers"),
         ({"--engine": "spark"}, "unknown engine"),
         ({"--address": "1.2.3.4:6379"}, "--engine ray"),
-        ({"--min-coverage": "roundabouts=2"}, "not a rule situation"),
+        ({"--min-coverage": "bridges=2"}, "not a rule situation"),
         ({"--min-coverage": "turn_bays=0"}, "KIND=N with N >= 1"),
         ({"--min-coverage": "turn_bays"}, "KIND=N with N >= 1"),
         ({"--min-coverage": "turn_bays=1,turn_bays=2"}, "twice"),

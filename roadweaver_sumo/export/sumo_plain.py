@@ -105,7 +105,9 @@ def _taper_shape(hd: HDMap, junction) -> np.ndarray:
 
 
 def plain_edges(hd: HDMap) -> etree._Element:
-    """``<edges>``: one edge per road direction, shape in driving direction."""
+    """``<edges>``: one edge per road direction, shape in driving direction; a
+    ``<roundabout>`` per roundabout (``hdmap.roundabouts``), for netconvert to make its
+    entries yield to the ring."""
     root = _root("edges", "edges_file.xsd")
     for rid in sorted(hd.roads):
         road = hd.roads[rid]
@@ -126,6 +128,15 @@ def plain_edges(hd: HDMap) -> etree._Element:
                 **({"sidewalkWidth": _num(road.sidewalk_width)} if road.sidewalk_width else {}),
                 "shape": " ".join(line),
             })
+    rings: dict[int, list[int]] = {}
+    for jid in sorted(hd.junctions):
+        if hd.junctions[jid].roundabout is not None:
+            rings.setdefault(hd.junctions[jid].roundabout, []).append(jid)
+    for ring in rings.values():
+        edges = [edge_id(rid, "f") for rid in sorted(hd.roads)
+                 if {hd.roads[rid].from_node, hd.roads[rid].to_node} <= set(ring)]
+        etree.SubElement(root, "roundabout", nodes=" ".join(map(node_id, ring)),
+                         edges=" ".join(edges))
     return root
 
 

@@ -10,6 +10,7 @@ from .lanes import SIDEWALK_WIDTH, build_road_lanes, lane_ends, make_roads, plan
 from .model import HDMap, Road
 from .movements import junction_plan
 from .one_way import choose_one_way
+from .roundabouts import add_roundabouts
 from .topology import add_successor_links, repair_topology
 from .turn_bays import TAPER_LENGTH, add_turn_bays
 
@@ -24,7 +25,7 @@ WIDEN_FACTOR, WIDEN_ROUNDS, BAN_ROUNDS = 1.25, 4, 3
 def build_hdmap(
     G: nx.Graph, geo_origin: tuple[float, float] | None = None, *, traffic_lights: bool = True,
     rules: str = DEFAULT_RULES, one_way_share: float = 0.0, sidewalks: bool = False,
-    speeds: dict[str, float] | None = None,
+    speeds: dict[str, float] | None = None, roundabouts: int = 0,
 ) -> HDMap:
     """Build the lane-level HD map of a RoadGraph (paper Algorithm 1).
 
@@ -34,11 +35,13 @@ def build_hdmap(
     (suburban maps). Up to ``one_way_share`` of the local street length becomes one-way
     (``one_way``). ``sidewalks``: every road gets a sidewalk of ``SIDEWALK_WIDTH`` right of
     each driving direction. ``speeds``: speed limits in km/h by road class, where not the
-    class's own (``lanes.LANE_CONFIGS``). Approaches to traffic lights get left-turn bays (``turn_bays``;
+    class's own (``lanes.LANE_CONFIGS``). Up to ``roundabouts`` junctions become roundabouts
+    (``roundabouts``). Approaches to traffic lights get left-turn bays (``turn_bays``;
     ``HDMap.graph`` is then the road graph with their taper nodes).
     RepairLaneGeometry needs no pass of its own: connectors end exactly on the lanes they join
     and junction trims leave every road a lane section (see ``lanes.MAX_TRIM_SHARE``).
     """
+    G = add_roundabouts(G, roundabouts, rules, traffic_lights)
     G = add_turn_bays(G, rules, traffic_lights)
     hd = HDMap(
         width=float(G.graph["width"]),
@@ -51,7 +54,8 @@ def build_hdmap(
     choose_one_way(G, hd.roads, one_way_share)
     nodes = {n: G.nodes[n]["xy"] for n in G.nodes}
     tapers = {n: TAPER_LENGTH / 2 for n, taper in G.nodes(data="taper") if taper}
-    hd.junctions = make_junctions(nodes, hd.roads, traffic_lights, rules, tapers)
+    rings = {n: ring for n, ring in G.nodes(data="roundabout") if ring is not None}
+    hd.junctions = make_junctions(nodes, hd.roads, traffic_lights, rules, tapers, rings)
     roads, junctions = list(hd.roads.values()), list(hd.junctions)
     for _ in range(WIDEN_ROUNDS + 1):
         tight = {lane.junction for lane in _lanes_and_connectors(hd, roads, junctions)}

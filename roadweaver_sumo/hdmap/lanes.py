@@ -92,11 +92,13 @@ def make_roads(G: nx.Graph, sidewalk_width: float = 0.0,
             centreline=dedupe(data["coords"]),
             road_class=data["road_class"],
             priority=cfg.priority,
-            speed=(speeds or {}).get(data["road_class"], cfg.speed * 3.6) / 3.6,
+            speed=speeds[data["road_class"]] / 3.6 if data["road_class"] in (speeds or {})
+            else cfg.speed,
             lane_width=cfg.width,
             sections=[],
             sidewalk_width=sidewalk_width,
             bay=None if "bay_to" not in data else "f" if data["bay_to"] == to_node else "b",
+            one_way=bool(data.get("one_way")),  # a roundabout's ring; one_way picks streets
         )
     return roads
 

@@ -141,6 +141,8 @@ class Junction:
     connectors: list[str] = field(default_factory=list)
     #: where a turn bay opens (``hdmap.turn_bays``): the through lanes move aside in here
     taper: bool = False
+    #: a roundabout's ring node (``hdmap.roundabouts``): the id of the junction it replaced
+    roundabout: int | None = None
 
 
 @dataclass

@@ -47,6 +47,7 @@ def choose_one_way(G: nx.Graph, roads: dict[int, Road], share: float) -> None:
     _alternate(strokes)
     nodes = {n: k for k, n in enumerate(sorted(G.nodes))}
     arcs = {(u, v) for u, v in G.edges} | {(v, u) for u, v in G.edges}
+    arcs -= {(r.to_node, r.from_node) for r in roads.values() if r.one_way}  # roundabouts
     chosen = 0.0
     for stroke in sorted(strokes, key=lambda s: (-s["length"], s["path"])):
         if chosen + stroke["length"] > share * local:

@@ -20,8 +20,8 @@ from ..spec import ScenarioSpec
 
 #: what a minimum can be asked for: a junction control (SUMO node types, junctions of three
 #: or more roads), or one of the other counts of ``net.rules``
-KINDS = (*(c for c in CONTROLS if c != "dead_end"), "one_way_edges", "turn_bays",
-         "protected_lefts", "pedestrian_crossings", "speed_limit_changes")
+KINDS = (*(c for c in CONTROLS if c != "dead_end"), "roundabouts", "one_way_edges",
+         "turn_bays", "protected_lefts", "pedestrian_crossings", "speed_limit_changes")
 RESEED_STEP = 1000  # the next seed tried: far from the grid's own seeds (0-9 and the like)
 MAX_RESEEDS = 8
 
@@ -47,7 +47,8 @@ def coverage(folder: Path) -> dict[str, int]:
     rules = json.loads((Path(folder) / "report.json").read_text(encoding="utf-8"))["net"]["rules"]
     counts = {kind: rules["junction_controls"].get(kind, 0) for kind in CONTROLS}
     counts["pedestrian_crossings"] = sum(rules.get("pedestrian_crossings", {}).values())
-    for kind in ("one_way_edges", "turn_bays", "protected_lefts", "speed_limit_changes"):
+    for kind in ("roundabouts", "one_way_edges", "turn_bays", "protected_lefts",
+                 "speed_limit_changes"):
         counts[kind] = rules.get(kind, 0)
     return {kind: counts[kind] for kind in KINDS}
 

@@ -42,6 +42,7 @@ class SuiteSpec:
     one_way_share: float = 0.0
     sidewalks: bool = False
     speeds: dict = field(default_factory=dict)
+    roundabouts: int = 0
     persons: int = 0
     bus_lines: int = 0
     vehicle_mix: dict = field(default_factory=lambda: dict(LEGACY_VEHICLE_MIX))

@@ -61,6 +61,9 @@ def road_graph(net: sumolib.net.Net) -> nx.Graph:
     G = new_road_graph(x1 - x0, y1 - y0)
     for node in road_junctions(net):
         G.add_node(node.getID(), xy=tuple(float(c) for c in node.getCoord()))
+    for k, ring in enumerate(net.getRoundabouts()):  # one junction each (metrics)
+        for node in ring.getNodes():
+            G.nodes[node]["roundabout"] = f"roundabout{k}"
     for edge in sorted(road_edges(net), key=lambda e: e.getID()):
         u, v = edge.getFromNode().getID(), edge.getToNode().getID()
         if u == v or G.has_edge(u, v):
