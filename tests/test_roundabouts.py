@@ -12,7 +12,8 @@ import roadweaver_sumo as rw
 from roadweaver_sumo.export.map_files import write_map_files
 from roadweaver_sumo.hdmap import build_hdmap
 from roadweaver_sumo.hdmap.roundabouts import RING_RADIUS
-from roadweaver_sumo.metrics import road_node_count
+from roadweaver_sumo.metrics import road_node_count, sharp_bends
+from roadweaver_sumo.validate.netgraph import load_net, road_graph
 from roadweaver_sumo.validate.rule_coverage import rule_coverage
 
 
@@ -63,3 +64,12 @@ def test_no_roundabout_where_arterials_meet_or_none_is_asked():
 def test_the_default_scenario_asks_for_one_and_older_specs_for_none():
     assert rw.ScenarioSpec(density=30, vehicles=1).roundabouts == 1
     assert rw.ScenarioSpec.from_dict({"density": 30, "vehicles": 1}).roundabouts == 0
+
+
+def test_a_ring_with_sidewalks_reads_back_without_sharp_bends(tmp_path):
+    """netconvert shifts a one-way edge with a sidewalk half the sidewalk sideways: the net's
+    road graph puts the shifted ends on their junctions instead of adding a spur to them,
+    which on a ring read as bends of over 120 degrees."""
+    hd = build_hdmap(crossing(), (48.137, 11.575), roundabouts=1, sidewalks=True)
+    net = load_net(write_map_files(hd, tmp_path)["sumo"])
+    assert len(net.getRoundabouts()) == 1 and sharp_bends(road_graph(net)) == 0

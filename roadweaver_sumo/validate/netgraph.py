@@ -87,13 +87,20 @@ def road_class(edge) -> str:
     return by_priority.get(edge.getPriority(), "local")
 
 
+#: m: a raw shape that ends this close to its junction is only shifted sideways (netconvert
+#: shifts a one-way edge with a sidewalk by half the sidewalk): its end moves onto the
+#: junction, where a spur from the junction to it would read as a sharp bend; one farther
+#: off gets the junction added
+SHIFTED_END_M = 2.0
+
+
 def _edge_polyline(G: nx.Graph, edge, u: str, v: str) -> np.ndarray:
     """The edge's raw (centreline) shape with both ends on the junction positions."""
     pts = [tuple(p[:2]) for p in edge.getRawShape()]
     ends = (G.nodes[u]["xy"], G.nodes[v]["xy"])
-    if np.hypot(*np.subtract(pts[0], ends[0])) > 1e-6:
+    if np.hypot(*np.subtract(pts[0], ends[0])) > SHIFTED_END_M:
         pts.insert(0, ends[0])
-    if np.hypot(*np.subtract(pts[-1], ends[1])) > 1e-6:
+    if np.hypot(*np.subtract(pts[-1], ends[1])) > SHIFTED_END_M:
         pts.append(ends[1])
     coords = np.array(pts, dtype=float)
     coords[0], coords[-1] = ends
