@@ -2,6 +2,7 @@
 
 Usage: python bench/quality_sweep.py [--densities 10,20,30,40,60] [--seeds 0-4] [--styles mixed]
        [--skeleton learned|procedural] [--boundary open|ring] [--rules de|us|priority]
+       [--persons 0]
 Prints one row per scenario and a summary against the issue's thresholds; writes JSON next to it.
 """
 
@@ -36,6 +37,8 @@ def main() -> None:
     ap.add_argument("--boundary", default="open", help="open or ring")
     ap.add_argument("--rules", default="de", help="de, us or priority")
     ap.add_argument("--vehicles", type=int, default=500)
+    ap.add_argument("--persons", type=int, default=0,
+                    help="pedestrians per scenario, on sidewalks (0: no sidewalks)")
     ap.add_argument("--json", type=Path, default=Path("bench/results/quality_sweep.json"))
     args = ap.parse_args()
     rows: list[dict] = []
@@ -47,7 +50,8 @@ def main() -> None:
                     spec = ScenarioSpec(density=density, vehicles=args.vehicles, seed=seed,
                                         style=style, width=args.size, height=args.size,
                                         skeleton=args.skeleton, boundary=args.boundary,
-                                        rules=args.rules)
+                                        rules=args.rules, sidewalks=args.persons > 0,
+                                        persons=args.persons)
                     start = time.perf_counter()
                     try:
                         res = make_scenario(spec, Path(tmp) / spec.name)
