@@ -22,7 +22,7 @@ from operator import itemgetter
 import networkx as nx
 import numpy as np
 
-ROAD_CLASSES = ("arterial", "collector", "local")
+from .spec import ROAD_CLASSES
 
 
 def new_road_graph(width: float, height: float) -> nx.Graph:

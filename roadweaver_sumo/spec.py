@@ -57,7 +57,8 @@ MIN_DURATION_S, MAX_DURATION_S = 1.0, 604_800.0  # a week of demand
 MAX_SEED = 2**31 - 1
 MAX_WORKERS = 256  # parallel scenarios of a suite
 MAX_EGO_ROUTES = 100
-#: the road classes (``hdmap.lanes.LANE_CONFIGS``) and the speed limits one may give them
+#: the road classes, highest first (``roadgraph``; ``hdmap.lanes.LANE_CONFIGS`` configures
+#: them), and the speed limits one may give them
 ROAD_CLASSES = ("arterial", "collector", "local")
 MIN_SPEED_KMH, MAX_SPEED_KMH = 5.0, 130.0
 DEFAULT_ROUNDABOUTS, MAX_ROUNDABOUTS = 1, 1000

@@ -571,3 +571,25 @@ def test_a_turn_that_still_folds_in_a_junction_as_wide_as_its_roads_allow_is_not
             assert lane.id in entered and lane.id in left, lane.id
     monkeypatch.setattr(build, "BAN_ROUNDS", 0)
     assert [lane.movement for lane in folding_turns(generate_map(spec).connectors())] == ["right"]
+
+
+def test_no_shallow_left_at_a_fork_where_there_is_another_way():
+    """A fork: the way ahead bends 40 degrees right, the other branch 45 degrees left. The left
+    branch's path would run beside the oncoming traffic's (SUMO let an oncoming car clip a
+    left-turner waiting there), so it is left out: the stem goes on to the right branch only,
+    and the left branch is still entered, from the right branch."""
+    nodes = {0: (200, 200), 1: (50, 200), 2: (200 + 150 * np.cos(-0.7), 200 + 150 * np.sin(-0.7)),
+             3: (200 + 150 * np.cos(0.785), 200 + 150 * np.sin(0.785))}
+    hd = build_hdmap(_graph(nodes, [(1, 0, "collector"), (0, 2, "collector"), (0, 3, "local")]))
+    roads = {frozenset((r.from_node, r.to_node)): r for r in hd.roads.values()}
+    stem, right, left = (roads[frozenset(e)].id for e in ((0, 1), (0, 2), (0, 3)))
+    moves = {(hd.lanes[c.predecessors[0]].road, hd.lanes[c.successors[0]].road): c.movement
+             for c in hd.connectors() if c.junction == 0}
+    assert (stem, right) in moves and (stem, left) not in moves
+    assert (right, left) in moves
+    one_way = _graph(nodes, [(1, 0, "collector"), (0, 2, "collector"), (0, 3, "local")])
+    one_way.edges[0, 2]["one_way"] = True  # the right branch only leaves: the left is the
+    hd = build_hdmap(one_way)                # last way into the left branch, and is kept
+    moves = {(hd.lanes[c.predecessors[0]].road, hd.lanes[c.successors[0]].road): c.movement
+             for c in hd.connectors() if c.junction == 0}
+    assert moves[(stem, left)] == "left"

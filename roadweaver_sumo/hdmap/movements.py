@@ -41,7 +41,7 @@ SHARP_LEFT_MAX = np.radians(135.0)
 #: leaves less than ``FORK_LEFT_MAX`` to the left, the left-turner's path runs beside the
 #: oncoming traffic's until it crosses it at a shallow angle, and SUMO stops the left-turner
 #: where oncoming cars clip it (learned organic 2 km d60 s1: a waiting car hit at 7.8 m/s).
-#: That left is left out where the arrival has another way on.
+#: That left is left out where the arrival has another way on and its departure another way in.
 FORK_BEND, FORK_LEFT_MAX = np.radians(15.0), np.radians(60.0)
 
 Plan = list[tuple[str, str, str]]  # (incoming lane id, outgoing lane id, movement)
@@ -76,7 +76,8 @@ def approaches(hd: HDMap, node: int, ends: LaneEnds) -> tuple[list[Approach], li
 
 
 def classify(arrival: Approach, departures: list[Approach]) -> list[tuple[Approach, str]]:
-    """Movement type of every legal departure for one arrival."""
+    """Movement type of every legal departure for one arrival; a shallow left at a fork is
+    ``"fork_left"`` (planned as a left, then dropped where it is not the last way on)."""
     others = [d for d in departures if d.road != arrival.road]
     if not others:  # dead end: the turnaround is the only way on
         return [(d, "uturn") for d in departures]
@@ -90,8 +91,10 @@ def classify(arrival: Approach, departures: list[Approach]) -> list[tuple[Approa
         labels[k] = "straight"
     moves = list(zip(others, labels, strict=True))
     fork = has_straight and turns[k] <= -FORK_BEND
+    moves = [(dep, "fork_left" if m == "left" and fork and t < FORK_LEFT_MAX else m)
+             for (dep, m), t in zip(moves, turns, strict=True)]
     kept = [m for m, t in zip(moves, turns, strict=True)
-            if not (m[1] == "left" and (t > SHARP_LEFT_MAX or (fork and t < FORK_LEFT_MAX)))]
+            if not (m[1] == "left" and t > SHARP_LEFT_MAX)]
     return kept or moves
 
 
@@ -119,7 +122,7 @@ def lane_plan(arrival: Approach, moves: list[tuple[Approach, str]]) -> Plan:
     n_right = 1 if one_turn_lane else n // 2
     n_left = 1 if one_turn_lane else n - n // 2
     plan: Plan = []
-    turns = {m for _, m in moves}
+    turns = {"left" if m == "fork_left" else m for _, m in moves}
     for dep, movement in moves:
         if movement == "straight":
             pairs = _spread(_straight_lanes(arrival.lanes, len(dep.lanes), turns), dep.lanes)
@@ -127,7 +130,7 @@ def lane_plan(arrival: Approach, moves: list[tuple[Approach, str]]) -> Plan:
             pairs = _spread(arrival.lanes, dep.lanes)
         elif movement == "right":
             pairs = _spread(arrival.lanes[:n_right], dep.lanes[:1])
-        else:
+        else:  # left, or a fork's shallow left (``classify``)
             pairs = _spread(arrival.lanes[n - n_left :], dep.lanes[-1:])
         plan.extend((a, b, movement) for a, b in pairs)
     return plan
@@ -190,7 +193,9 @@ def junction_plan(hd: HDMap, node: int, ends: LaneEnds,
     plan: Plan = []
     for arrival in arrivals:
         plan.extend(lane_plan(arrival, classify(arrival, departures)))
-    plan = _drop_banned(plan, banned, arrivals, departures)
+    forks = {(a, b) for a, b, movement in plan if movement == "fork_left"}
+    plan = [(a, b, "left" if m == "fork_left" else m) for a, b, m in plan]
+    plan = _drop_banned(plan, set(banned) | forks, arrivals, departures)
     plan = _close_gaps(plan, [a.lanes for a in arrivals], side=0)
     plan = _close_gaps(plan, [d.lanes for d in departures], side=1)
     return sorted(set(plan))
