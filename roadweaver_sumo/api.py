@@ -82,7 +82,7 @@ def generate_map(spec: ScenarioSpec) -> HDMap:
         (node attribute ``xy``, edge attributes ``coords`` and ``road_class``).
     """
     from .expand import expand_skeleton
-    from .hdmap import build_hdmap
+    from .hdmap import build_hdmap_for
     from .skeleton import make_skeleton
 
     if spec.like:
@@ -91,10 +91,7 @@ def generate_map(spec: ScenarioSpec) -> HDMap:
         graph = closest_map(spec)[1]
     else:
         graph = expand_skeleton(spec, make_skeleton(spec))
-    return build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights,
-                       rules=spec.rules, one_way_share=spec.one_way_share,
-                       sidewalks=spec.sidewalks, speeds=spec.speeds,
-                       roundabouts=spec.roundabouts)
+    return build_hdmap_for(graph, spec)
 
 
 def write_map(hdmap: HDMap, folder: str | Path, template: str = "urban") -> dict[str, Path]:

@@ -117,12 +117,9 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
             provenance = skeleton.provenance
             del skeleton
         with stage("hdmap ...", "hdmap"):
-            from .hdmap import build_hdmap, hdmap_metrics
+            from .hdmap import build_hdmap_for, hdmap_metrics
 
-            hdmap = build_hdmap(graph, spec.geo_origin, traffic_lights=spec.traffic_lights,
-                                rules=spec.rules, one_way_share=spec.one_way_share,
-                                sidewalks=spec.sidewalks, speeds=spec.speeds,
-                                roundabouts=spec.roundabouts)
+            hdmap = build_hdmap_for(graph, spec)
         from .export.map_files import write_map_files
 
         write_map_files(hdmap, folder, spec.netconvert_template, timed=stage)

@@ -133,7 +133,8 @@ def plain_edges(hd: HDMap) -> etree._Element:
         if hd.junctions[jid].roundabout is not None:
             rings.setdefault(hd.junctions[jid].roundabout, []).append(jid)
     for ring in rings.values():
-        edges = [edge_id(rid, "f") for rid in sorted(hd.roads)
+        roads = sorted({rid for jid in ring for rid in hd.junctions[jid].roads})
+        edges = [edge_id(rid, "f") for rid in roads
                  if {hd.roads[rid].from_node, hd.roads[rid].to_node} <= set(ring)]
         etree.SubElement(root, "roundabout", nodes=" ".join(map(node_id, ring)),
                          edges=" ".join(edges))

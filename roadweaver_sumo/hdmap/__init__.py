@@ -5,7 +5,7 @@ and the directed lane graph); ``hdmap_metrics(hdmap)`` measures lane reachabilit
 connectivity and endpoint alignment.
 """
 
-from .build import build_hdmap
+from .build import build_hdmap, build_hdmap_for
 from .lanes import LANE_CONFIGS, LaneConfig
 from .model import HDMap, Junction, Lane, LaneSection, Road, edge_id, road_lane_id
 from .topology import hdmap_metrics, lane_reachability
@@ -19,6 +19,7 @@ __all__ = [
     "LaneSection",
     "Road",
     "build_hdmap",
+    "build_hdmap_for",
     "edge_id",
     "hdmap_metrics",
     "lane_reachability",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import networkx as nx
 
+from ..spec import ScenarioSpec
 from .control import DEFAULT_RULES
 from .junctions import add_connectors, folding_turns, make_junctions
 from .lanes import SIDEWALK_WIDTH, build_road_lanes, lane_ends, make_roads, plan_reference_lines
@@ -20,6 +21,14 @@ from .turn_bays import TAPER_LENGTH, add_turn_bays
 #: A turn that still folds then is banned where its lanes have other ways on, up to
 #: BAN_ROUNDS times (the lanes it served take a neighbour lane's movement, which may fold too).
 WIDEN_FACTOR, WIDEN_ROUNDS, BAN_ROUNDS = 1.25, 4, 3
+
+
+def build_hdmap_for(G: nx.Graph, spec: ScenarioSpec) -> HDMap:
+    """The HD map of road graph ``G`` with everything ``spec`` asks of it (what
+    ``make-scenario`` and ``roadweaver_sumo.generate_map`` build)."""
+    return build_hdmap(G, spec.geo_origin, traffic_lights=spec.traffic_lights, rules=spec.rules,
+                       one_way_share=spec.one_way_share, sidewalks=spec.sidewalks,
+                       speeds=spec.speeds, roundabouts=spec.roundabouts)
 
 
 def build_hdmap(

@@ -38,10 +38,15 @@ class LaneConfig:
 
     @property
     def min_radius(self) -> float:
-        """The tightest arc of the reference line, metres: the outer lane edge on the inside of
-        a bend keeps ``BEND_MARGIN`` of radius (no lane folds over), and no arc is tighter
-        than ``MIN_TURN_RADIUS``."""
-        return max(MIN_TURN_RADIUS, self.half_width + BEND_MARGIN)
+        """The tightest arc of the reference line, metres (:func:`bend_radius`)."""
+        return bend_radius(self.half_width)
+
+
+def bend_radius(half_width: float) -> float:
+    """The tightest arc of a reference line whose lanes reach ``half_width`` from it, metres:
+    the outer lane edge on the inside of a bend keeps ``BEND_MARGIN`` of radius (no lane folds
+    over), and no arc is tighter than ``MIN_TURN_RADIUS``."""
+    return max(MIN_TURN_RADIUS, half_width + BEND_MARGIN)
 
 
 LANE_CONFIGS: dict[str, LaneConfig] = {
@@ -119,8 +124,7 @@ def plan_reference_lines(roads: list[Road], trims: list[tuple[float, float]]) ->
     RefineRoadGraph), all roads in one batch. The centreline is cut back by the trims, with
     no vertex within ``END_STRAIGHT`` of a cut end, and its corners filleted with arcs of at
     least the class's ``min_radius``."""
-    radii = [max(MIN_TURN_RADIUS, half_width(road) + BEND_MARGIN) + road.sidewalk_width
-             for road in roads]
+    radii = [bend_radius(half_width(road)) + road.sidewalk_width for road in roads]
     cuts = []
     for road, (trim_start, trim_end) in zip(roads, trims, strict=True):
         length = float(arc_lengths(road.centreline)[-1])

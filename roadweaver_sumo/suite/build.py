@@ -91,7 +91,7 @@ def _meet_coverage(minimum: dict[str, int], specs: dict[str, ScenarioSpec],
     short then fails with what it lacks. A seed tried in place of a passing one that fails
     its checks is tried past too: asking for coverage must not turn a passing scenario into
     a failing one. ``specs`` and ``entries`` change in place."""
-    origin = dict(specs)
+    origin, grid = dict(specs), set(specs)
 
     def wanting(name: str) -> str | None:
         if not entries[name]["passed"]:
@@ -99,7 +99,6 @@ def _meet_coverage(minimum: dict[str, int], specs: dict[str, ScenarioSpec],
         lacking = shortfall(tmp / name, minimum)
         return f"lacks {', '.join(lacking)}" if lacking else None
 
-    grid = set(specs)
     for attempt in range(1, MAX_RESEEDS + 1):
         short = {name: why for name in list(specs) if (why := wanting(name))}
         if not short:

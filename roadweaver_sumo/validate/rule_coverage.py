@@ -26,18 +26,18 @@ APPROACH_RULES = {"O": "signalised", "o": "signalised", "G": "signalised", "g": 
 def rule_coverage(net: sumolib.net.Net) -> dict:
     """Junctions by control (SUMO node type; places where at least three roads meet, and
     zipper merges where a road loses a lane; a roundabout's ring nodes are its own count),
-    turns
-    into junctions by the rule that governs them, one-way road edges, turn bays (approaches
-    to a light that gain lanes shortly before it), protected left turns, roundabouts,
-    pedestrian crossings
-    (at lights, or zebras where pedestrians go first), the speed limits in km/h and the
-    speed-limit changes where a road goes straight on into one of another limit."""
+    turns into junctions by the rule that governs them, one-way road edges, turn bays
+    (approaches to a light that gain lanes shortly before it), protected left turns,
+    roundabouts, pedestrian crossings (at lights, or zebras where pedestrians go first), the
+    speed limits in km/h and the speed-limit changes where a road goes straight on into one
+    of another limit. Protected lefts need the net read with its programs."""
     rings = {node for ring in net.getRoundabouts() for node in ring.getNodes()}
     controls = Counter(node.getType() for node in road_junctions(net) if node.getID() not in rings
                        and (len(_neighbours(node)) >= 3 or node.getType() == "zipper"))
     approaches: Counter = Counter()
     changes = 0
-    for edge in road_edges(net):
+    edges = road_edges(net)
+    for edge in edges:
         for after, connections in edge.getOutgoing().items():
             if after.isSpecial():
                 continue
@@ -52,7 +52,7 @@ def rule_coverage(net: sumolib.net.Net) -> dict:
     return {"junction_controls": dict(sorted(controls.items())),
             "turns_by_rule": dict(sorted(approaches.items())),
             "one_way_edges": one_way,
-            "turn_bays": sum(_opens_a_bay(edge) for edge in road_edges(net)),
+            "turn_bays": sum(_opens_a_bay(edge) for edge in edges),
             "roundabouts": len(net.getRoundabouts()),
             "protected_lefts": _protected_lefts(net),
             "pedestrian_crossings": dict(sorted(crossings.items())),
@@ -139,8 +139,7 @@ def rule_lines(rules: dict) -> list[str]:
     turns = (f"turns by rule: {counts(rules['turns_by_rule'])}; one-way edges "
              f"{rules['one_way_edges']}; turn bays {rules.get('turn_bays', 0)}, protected lefts "
              f"{rules.get('protected_lefts', 0)}; roundabouts {rules.get('roundabouts', 0)}; "
-             "speed limits "
-             f"{rules['speed_limits_kmh']} km/h, "
+             f"speed limits {rules['speed_limits_kmh']} km/h, "
              f"{rules['speed_limit_changes']} changes; pedestrian crossings "
              f"{counts(rules.get('pedestrian_crossings', {}))}")
     rings = rules.get("roundabouts", 0)
