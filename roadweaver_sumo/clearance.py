@@ -8,8 +8,10 @@ meets another at too sharp an angle (paper §III-C, clean-up): the road less wor
 and the density control places local roads elsewhere.
 
 The clearance of two roads is the sum of their half widths (lanes x lane width of their class,
-``hdmap.lanes.LANE_CONFIGS``, a lane more on a turn bay's road: ``hdmap.turn_bays``) plus
-:data:`MARGIN`. The expansion's clean-up keeps roads apart by it, and the turn bays are only
+``hdmap.lanes.LANE_CONFIGS``, a lane more on a turn bay's road: ``hdmap.turn_bays``), a
+sidewalk on each road's side of the gap (``hdmap.lanes.SIDEWALK_WIDTH``) and :data:`MARGIN`.
+The sidewalks count whether or not the map draws them: asking for ``--sidewalks`` must not
+move a road, and a map without them keeps the verge real streets have. The expansion's clean-up keeps roads apart by it, and the turn bays are only
 added where their wider roads keep it too. Near a junction two roads are close by
 nature: within :data:`JUNCTION_REACH` clearances of a junction node of either road they may
 come closer (the junction's shape covers that ground in every export); beyond it they may not,
@@ -22,10 +24,11 @@ import networkx as nx
 import numpy as np
 import shapely
 
-from .hdmap.lanes import LANE_CONFIGS
+from .hdmap.lanes import LANE_CONFIGS, SIDEWALK_WIDTH
 from .roadgraph import sorted_edge_list
 
-MARGIN = 1.0  # metres of open ground between the outer edges of two roads' lanes
+MARGIN = 1.0  # metres of open ground between the outer edges of two roads' sidewalks
+ROADSIDES = 2 * SIDEWALK_WIDTH  # the two roads' sidewalks facing each other
 MIN_CONTACT = 0.5  # metres: shorter contacts are numerical touches at a junction's rim
 #: Two roads that leave a junction at the clean-up's least angle (30°) are a clearance apart
 #: 1.93 clearances out: a junction's area reaches twice the clearance of the roads compared.
@@ -39,7 +42,7 @@ def half_width(road_class: str) -> float:
 
 def clearance(class_a: str, class_b: str) -> float:
     """Least distance in metres between the centrelines of two roads of these classes."""
-    return half_width(class_a) + half_width(class_b) + MARGIN
+    return half_width(class_a) + half_width(class_b) + ROADSIDES + MARGIN
 
 
 def roads_too_close(G: nx.Graph, among: set | None = None) -> list[tuple[tuple, tuple]]:
@@ -58,13 +61,13 @@ def roads_too_close(G: nx.Graph, among: set | None = None) -> list[tuple[tuple, 
     edges = [(u, v) if u <= v else (v, u) for u, v, _ in roads]
     lines = np.array([shapely.LineString(data["coords"]) for _, _, data in roads])
     half = np.array([_half_width(data) for _, _, data in roads])
-    widest = 2 * half.max() + MARGIN
+    widest = 2 * half.max() + ROADSIDES + MARGIN
     asked = np.arange(len(edges)) if among is None else np.flatnonzero(
         [edge in among for edge in edges])
     i, j = shapely.STRtree(lines).query(lines[asked], predicate="dwithin", distance=widest)
     i, j = np.unique(np.sort([asked[i], j], axis=0), axis=1)
     i, j = i[i < j], j[i < j]
-    reach = half[i] + half[j] + MARGIN
+    reach = half[i] + half[j] + ROADSIDES + MARGIN
     near = shapely.distance(lines[i], lines[j]) < reach
     i, j, reach = i[near], j[near], reach[near]
     free_i, free_j = _outside_junctions(G, edges, i, j, reach, lines)

@@ -301,10 +301,10 @@ def test_a_jog_stays_where_one_corner_would_crowd_another_road():
 
     jog = np.array([[0.0, 0.0], [100.0, 0.0], [103.0, 5.2], [200.0, 5.2]])
     G = new_road_graph(1000, 1000)
-    for n, xy in enumerate([jog[0], jog[-1], (90.0, 8.0), (90.0, 48.0)]):
+    for n, xy in enumerate([jog[0], jog[-1], (90.0, 12.0), (90.0, 52.0)]):
         G.add_node(n, xy=xy)
     add_road(G, 0, 1, jog, "local")
-    add_road(G, 2, 3, np.array([[90.0, 8.0], [90.0, 48.0]]), "local")  # a dead end above it
+    add_road(G, 2, 3, np.array([[90.0, 12.0], [90.0, 52.0]]), "local")  # a dead end above it
     smooth_bends(G)
     assert np.array_equal(G.edges[0, 1]["coords"], round_corners(jog, 30.0, 20.0))
     assert roads_too_close(G) == []
