@@ -14,6 +14,7 @@ from test_one_way import local_grid
 
 from roadweaver_sumo.cli import main
 from roadweaver_sumo.export.map_files import write_map_files
+from roadweaver_sumo.export.sumo_plain import SIDEWALK_CORNER_RADIUS
 from roadweaver_sumo.hdmap import build_hdmap, hdmap_metrics
 from roadweaver_sumo.hdmap.lanes import LANE_CONFIGS, SIDEWALK_WIDTH
 from roadweaver_sumo.validate.lanelet2_check import check_lanelet2, lanelet2_failures
@@ -62,6 +63,8 @@ def test_sumo_has_the_sidewalks_crossings_and_walking_areas(hd, files):
     walking = {e.get("id").split("_")[0][1:] for e in root.iter("edge")
                if e.get("function") == "walkingarea"}
     assert busy < walking, "walking areas join sidewalks at two-road nodes too"
+    radii = {j.get("id"): j.get("radius") for j in root.iter("junction")}
+    assert {radii[n] for n in busy} == {f"{SIDEWALK_CORNER_RADIUS:.2f}"}, "corners wide enough"
 
 
 def test_opendrive_carries_the_sidewalks_carla_finds_them(hd, files):
@@ -139,6 +142,9 @@ def test_pedestrians_walk_on_them_to_their_end(tmp_path):
     assert code == (0 if report["passed"] else 1)
     people = etree.parse(str(out / "persons.rou.xml")).getroot().findall("person")
     assert [p.get("id") for p in people] == [f"ped{i}" for i in range(40)]
+    # people step out of doors along a street, not onto a crossing at its end
+    assert all(float(p.get("departPos")) > 0 and float(p.find("walk").get("arrivalPos")) > 0
+               for p in people)
     assert "persons.rou.xml" in (out / "scenario.sumocfg").read_text()
     assert not [p.name for p in out.iterdir() if ".tmp" in p.name]  # no routing leftovers
 

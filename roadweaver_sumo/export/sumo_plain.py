@@ -67,14 +67,24 @@ def _add_location(root: etree._Element, hd: HDMap) -> None:
 
 
 BORDER_M = 1.0  # a dead end this close to the map border is where a road left the map
+#: Corner radius (m) of a junction with sidewalks, at the sidewalk's outer edge (SUMO's default
+#: 4 m). On tight corners a right turn crosses both
+#: crossings near the corner, at an angle, and SUMO's drivers, who judge a walker's distance
+#: along the crossing as if they crossed it square, pass walkers who then step into the car's
+#: side. 2 km maps with 100 walkers (grid and mixed, densities 10-60): a vehicle-person
+#: collision on 7 of 50 maps at 4 m, 4 of 50 at 8 m; 12 m left 2 but made long left turns
+#: meet at the exits of arterial lights (2 junction collisions, 1 map with 2.5 % teleports).
+SIDEWALK_CORNER_RADIUS = 8.0
 
 
 def plain_nodes(hd: HDMap) -> etree._Element:
     """``<nodes>``: one node per junction with its control type. A dead end on the map border
     (a road that ran on into the town the map was cut from) is marked ``fringe="outer"``, so
     that randomTrips' ``--fringe-junctions`` sends through traffic in and out there, and not
-    at the cul-de-sacs inside."""
+    at the cul-de-sacs inside. On a map with sidewalks every junction off a roundabout's ring
+    has corners of :data:`SIDEWALK_CORNER_RADIUS`."""
     root = _root("nodes", "nodes_file.xsd")
+    corners = {"radius": _num(SIDEWALK_CORNER_RADIUS)} if hd.sidewalks else {}
     if hd.geo_origin is not None:
         _add_location(root, hd)
     for jid in sorted(hd.junctions):
@@ -83,6 +93,7 @@ def plain_nodes(hd: HDMap) -> etree._Element:
         outer = j.type == "dead_end" and min(x, y, hd.width - x, hd.height - y) < BORDER_M
         etree.SubElement(root, "node", id=node_id(jid), x=_num(x), y=_num(y), type=j.type,
                          **({"fringe": "outer"} if outer else {}),
+                         **({} if j.roundabout is not None else corners),
                          **({"shape": " ".join(_points(_taper_shape(hd, j)))} if j.taper else {}))
     return root
 
