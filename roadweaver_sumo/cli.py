@@ -33,6 +33,7 @@ from .spec import (
     PRIOR_RANGES,
     ScenarioSpec,
     parse_geo_origin,
+    parse_junction_mix,
     parse_size,
     parse_speeds,
     parse_vehicle_mix,
@@ -104,7 +105,9 @@ def _rule_and_demand_fields(args) -> dict:
             "sidewalks": args.sidewalks, "persons": args.persons, "bus_lines": args.bus_lines,
             "vehicle_mix": parse_vehicle_mix(args.vehicle_mix), "departures": args.departures,
             "fringe_factor": args.fringe_factor, "roundabouts": args.roundabouts,
-            "speeds": parse_speeds(args.speed) if args.speed is not None else {}}
+            "speeds": parse_speeds(args.speed) if args.speed is not None else {},
+            "junction_mix": parse_junction_mix(args.junction_mix)
+            if args.junction_mix is not None else {}}
 
 
 def _make_scenario(args) -> int:

@@ -39,6 +39,7 @@ from .spec import (
     MIN_EGO_LENGTH_M,
     MIN_ROAD_NODES,
     MIN_SIDE_M,
+    MIX_CONTROLS,
     PRIOR_RANGES,
     RULES,
     SKELETONS,
@@ -256,6 +257,12 @@ def _add_rule_and_demand_options(parser: argparse.ArgumentParser) -> None:
                         help="speed limits by road class, as netgenerate's --speed gives one "
                              "for all, e.g. arterial=70,local=30; each 5..130 km/h (default: "
                              "arterial 50, collector 40, local 30)")
+    parser.add_argument("--junction-mix", metavar="CONTROL=SHARE[,CONTROL=SHARE]",
+                        help="shares of the junctions of three or more arms by control, of "
+                             f"{', '.join(MIX_CONTROLS)}, e.g. traffic_light=0.2,"
+                             "allway_stop=0.3; lights and signs go to the most major "
+                             "junctions, right-before-left and all-way stops to the most "
+                             "minor; the rest follow --rules (default: all follow --rules)")
 
 
 def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:

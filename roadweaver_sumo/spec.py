@@ -25,6 +25,8 @@ SKELETONS = ("learned", "procedural")
 RULES = ("de", "us", "priority")
 DEFAULT_RULES = "de"
 LEGACY_RULES = "priority"  # of a spec or suite written before there was a choice
+#: junction controls a --junction-mix may ask for shares of (SUMO node types, ``hdmap.control``)
+MIX_CONTROLS = ("traffic_light", "priority", "priority_stop", "right_before_left", "allway_stop")
 DEFAULT_ONE_WAY_SHARE = 0.2
 DEFAULT_PERSONS = 0
 DEFAULT_BUS_LINES, MAX_BUS_LINES = 1, 4
@@ -44,7 +46,8 @@ LEGACY_DEPARTURES = "even"
 #: suite built then rebuilds to the same bytes.
 UNSAID = {"rules": LEGACY_RULES, "vehicle_mix": LEGACY_VEHICLE_MIX,
           "departures": LEGACY_DEPARTURES, "fringe_factor": 1.0, "one_way_share": 0.0,
-          "sidewalks": False, "persons": 0, "bus_lines": 0, "speeds": {}, "roundabouts": 0}
+          "sidewalks": False, "persons": 0, "bus_lines": 0, "speeds": {}, "roundabouts": 0,
+          "junction_mix": {}}
 LEGACY = {"boundary": LEGACY_BOUNDARY, **UNSAID}  # spec.json leaves the ring unsaid too
 MAX_SIDE_M = 50_000.0
 MIN_SIDE_M = 200.0
@@ -95,6 +98,8 @@ class ScenarioSpec:
     sidewalks: bool = False
     #: speed limits in km/h by road class, where not the class's own (``hdmap.lanes``)
     speeds: dict = field(default_factory=dict)
+    #: junction control -> share of the junctions of three or more arms (``hdmap.control``)
+    junction_mix: dict = field(default_factory=dict)
     #: up to this many junctions made roundabouts (``hdmap.roundabouts``)
     roundabouts: int = DEFAULT_ROUNDABOUTS
     duration: float = 3600.0
@@ -166,6 +171,7 @@ class ScenarioSpec:
                                   f"{self.bus_lines!r}")
         _check_vehicle_mix(self.vehicle_mix)
         _check_speeds(self.speeds)
+        _check_junction_mix(self.junction_mix)
         if isinstance(self.roundabouts, bool) or not isinstance(self.roundabouts, int) or not (
                 0 <= self.roundabouts <= MAX_ROUNDABOUTS):
             raise RoadweaverError(f"--roundabouts must be a whole number 0..{MAX_ROUNDABOUTS}, "
@@ -320,6 +326,11 @@ def parse_speeds(text: str) -> dict[str, float]:
     return _named_numbers(text, "--speed", "=", "class=km/h, e.g. arterial=60")
 
 
+def parse_junction_mix(text: str) -> dict[str, float]:
+    """``"traffic_light=0.2,allway_stop=0.3"`` -> shares; checked by the spec."""
+    return _named_numbers(text, "--junction-mix", "=", "control=share, e.g. allway_stop=0.3")
+
+
 def _named_numbers(text: str, option: str, sep: str, form: str) -> dict[str, float]:
     """Comma-separated ``name<sep>number`` items as {name: number}; a malformed item is a
     one-line error saying the ``form`` expected."""
@@ -344,6 +355,22 @@ def _check_speeds(speeds) -> None:
         if not MIN_SPEED_KMH <= value <= MAX_SPEED_KMH:
             raise RoadweaverError(f"--speed {name} must be {MIN_SPEED_KMH:g}..{MAX_SPEED_KMH:g} "
                                   f"km/h, got {value:g}")
+
+
+def _check_junction_mix(mix) -> None:
+    if not isinstance(mix, dict):
+        raise RoadweaverError("--junction-mix must map junction controls to shares")
+    for name, share in mix.items():
+        if name not in MIX_CONTROLS:
+            raise RoadweaverError(f"--junction-mix: unknown junction control {name!r}; choose "
+                                  f"from {', '.join(MIX_CONTROLS)}")
+        _check_number(f"--junction-mix {name}", share)
+        if not 0 <= share <= 1:
+            raise RoadweaverError(f"--junction-mix: the share of {name} must be 0..1, got "
+                                  f"{share:g}")
+    if sum(mix.values()) > 1 + 1e-9:
+        raise RoadweaverError(f"--junction-mix: the shares add up to {sum(mix.values()):g}, "
+                              "more than 1")
 
 
 def _check_vehicle_mix(mix) -> None:

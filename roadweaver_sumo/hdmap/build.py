@@ -5,7 +5,7 @@ from __future__ import annotations
 import networkx as nx
 
 from ..spec import ScenarioSpec
-from .control import DEFAULT_RULES
+from .control import DEFAULT_RULES, plan_controls
 from .junctions import add_connectors, folding_turns, make_junctions
 from .lanes import SIDEWALK_WIDTH, build_road_lanes, lane_ends, make_roads, plan_reference_lines
 from .model import HDMap, Road
@@ -28,20 +28,22 @@ def build_hdmap_for(G: nx.Graph, spec: ScenarioSpec) -> HDMap:
     ``make-scenario`` and ``roadweaver_sumo.generate_map`` build)."""
     return build_hdmap(G, spec.geo_origin, traffic_lights=spec.traffic_lights, rules=spec.rules,
                        one_way_share=spec.one_way_share, sidewalks=spec.sidewalks,
-                       speeds=spec.speeds, roundabouts=spec.roundabouts)
+                       speeds=spec.speeds, roundabouts=spec.roundabouts,
+                       junction_mix=spec.junction_mix)
 
 
 def build_hdmap(
     G: nx.Graph, geo_origin: tuple[float, float] | None = None, *, traffic_lights: bool = True,
     rules: str = DEFAULT_RULES, one_way_share: float = 0.0, sidewalks: bool = False,
     speeds: dict[str, float] | None = None, roundabouts: int = 0,
+    junction_mix: dict[str, float] | None = None,
 ) -> HDMap:
     """Build the lane-level HD map of a RoadGraph (paper Algorithm 1).
 
     ``geo_origin`` is the (lat, lon) of the local origin, written by exporters as the map's
     geo-reference; by default ``G.graph["geo_origin"]`` if present. Junction control follows
     the regional ``rules`` (``control.RULES``); ``traffic_lights=False`` leaves out the lights
-    (suburban maps). Up to ``one_way_share`` of the local street length becomes one-way
+    (suburban maps); a ``junction_mix`` (control -> share) overrides both (``control``). Up to ``one_way_share`` of the local street length becomes one-way
     (``one_way``). ``sidewalks``: every road gets a sidewalk of ``SIDEWALK_WIDTH`` right of
     each driving direction. ``speeds``: speed limits in km/h by road class, where not the
     class's own (``lanes.LANE_CONFIGS``). Up to ``roundabouts`` junctions become roundabouts
@@ -50,8 +52,9 @@ def build_hdmap(
     RepairLaneGeometry needs no pass of its own: connectors end exactly on the lanes they join
     and junction trims leave every road a lane section (see ``lanes.MAX_TRIM_SHARE``).
     """
-    G = add_roundabouts(G, roundabouts, rules, traffic_lights)
-    G = add_turn_bays(G, rules, traffic_lights)
+    plan = plan_controls(G, rules, traffic_lights, junction_mix)
+    G = add_roundabouts(G, roundabouts, plan)
+    G = add_turn_bays(G, plan)
     hd = HDMap(
         width=float(G.graph["width"]),
         height=float(G.graph["height"]),
@@ -64,7 +67,7 @@ def build_hdmap(
     nodes = {n: G.nodes[n]["xy"] for n in G.nodes}
     tapers = {n: TAPER_LENGTH / 2 for n, taper in G.nodes(data="taper") if taper}
     rings = {n: ring for n, ring in G.nodes(data="roundabout") if ring is not None}
-    hd.junctions = make_junctions(nodes, hd.roads, traffic_lights, rules, tapers, rings)
+    hd.junctions = make_junctions(nodes, hd.roads, plan, tapers, rings)
     roads, junctions = list(hd.roads.values()), list(hd.junctions)
     for _ in range(WIDEN_ROUNDS + 1):
         tight = {lane.junction for lane in _lanes_and_connectors(hd, roads, junctions)}

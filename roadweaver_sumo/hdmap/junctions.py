@@ -12,7 +12,7 @@ from collections import defaultdict
 
 import numpy as np
 
-from .control import DEFAULT_RULES, junction_control
+from .control import ControlPlan
 from .geometry import (
     bezier_controls,
     bezier_sample,
@@ -81,16 +81,16 @@ def junction_radii(directions: np.ndarray, half_widths: np.ndarray, lane_widths:
 
 
 def make_junctions(
-    nodes: dict[int, tuple[float, float]], roads: dict[int, Road], traffic_lights: bool = True,
-    rules: str = DEFAULT_RULES, tapers: dict[int, float] | None = None,
+    nodes: dict[int, tuple[float, float]], roads: dict[int, Road],
+    plan: ControlPlan | None = None, tapers: dict[int, float] | None = None,
     rings: dict[int, int] | None = None,
 ) -> dict[int, Junction]:
-    """One junction per node with its incident roads, control (``control``) and trim
-    radius; ``tapers``: the taper nodes of turn bays (``turn_bays``) and the radius each
+    """One junction per node with its incident roads, control (``plan``, by default the
+    default rule set's) and trim radius; ``tapers``: the taper nodes of turn bays (``turn_bays``) and the radius each
     needs, where the through lanes move aside; ``rings``: a roundabout's ring nodes
     (``roundabouts``) and the junction each replaced: priority junctions, whose entries
     yield to the ring."""
-    tapers, rings = tapers or {}, rings or {}
+    plan, tapers, rings = plan or ControlPlan(), tapers or {}, rings or {}
     incident: dict[int, list[int]] = defaultdict(list)
     for road in roads.values():
         incident[road.from_node].append(road.id)
@@ -112,8 +112,8 @@ def make_junctions(
         node: Junction(
             id=node,
             xy=(float(nodes[node][0]), float(nodes[node][1])),
-            type="priority" if node in rings else junction_control(
-                [roads[r].road_class for r in rids], rules, traffic_lights),
+            type="priority" if node in rings else plan.control(
+                node, [roads[r].road_class for r in rids]),
             radius=radius,
             roads=rids,
             taper=node in tapers,

@@ -25,7 +25,7 @@ import shapely
 from shapely.ops import substring
 
 from .. import clearance  # a module: clearance imports hdmap.lanes, which loads this package
-from .control import junction_control
+from .control import ControlPlan
 from .geometry import dedupe
 
 RING_RADIUS = 15.0  # m: a compact urban roundabout, about 34 m across its outer edge
@@ -38,10 +38,10 @@ BORDER = 100.0  # m: no roundabout nearer the map's edge
 RING_STEP = 3.0  # m between the ring's polyline vertices
 
 
-def add_roundabouts(G: nx.Graph, count: int, rules: str, traffic_lights: bool = True
-                    ) -> nx.Graph:
+def add_roundabouts(G: nx.Graph, count: int, plan: ControlPlan) -> nx.Graph:
     """``G`` with up to ``count`` junctions turned into roundabouts: those of three or four
-    collector or local arms without a light where a collector meets, the most collector arms
+    collector or local arms without a light (``plan``) where a collector meets, nor a kind a
+    junction mix asked for, the most collector arms
     and arms first, ``MIN_SPACING`` apart; one whose ring or arms come within another road's
     clearance (``clearance.roads_too_close``) is left out. ``G`` itself where none is made."""
     if count <= 0:
@@ -51,7 +51,7 @@ def add_roundabouts(G: nx.Graph, count: int, rules: str, traffic_lights: bool = 
         if len(chosen) == count:
             break
         xy = np.asarray(G.nodes[node]["xy"])
-        if _fits(G, node, rules, traffic_lights) and all(
+        if _fits(G, node, plan) and all(
                 np.hypot(*(xy - G.nodes[other]["xy"])) >= MIN_SPACING for other in chosen):
             chosen.append(node)
     while chosen:
@@ -69,7 +69,7 @@ def _rank(G: nx.Graph, node: int) -> tuple:
     return (-classes.count("collector"), -len(classes), node)
 
 
-def _fits(G: nx.Graph, node: int, rules: str, traffic_lights: bool) -> bool:
+def _fits(G: nx.Graph, node: int, plan: ControlPlan) -> bool:
     """Whether ``node`` can be a roundabout: 3 or 4 arms of ``ARM_CLASSES``, one a collector,
     no light, away from the map's edge, arms that leave the ring once, ``MIN_GAP`` apart and
     ``MIN_ARM_LEFT`` long beyond it, to distinct other junctions."""
@@ -77,7 +77,7 @@ def _fits(G: nx.Graph, node: int, rules: str, traffic_lights: bool) -> bool:
     classes = [G.edges[e]["road_class"] for e in arms]
     x, y = G.nodes[node]["xy"]
     if not (3 <= len(arms) <= 4 and set(classes) <= set(ARM_CLASSES) and "collector" in classes
-            and junction_control(classes, rules, traffic_lights) != "traffic_light"
+            and plan.control(node, classes) != "traffic_light" and not plan.counts_for_mix(node)
             and min(x, y, G.graph["width"] - x, G.graph["height"] - y) >= BORDER
             and len({v for _, v in arms}) == len(arms)):
         return False

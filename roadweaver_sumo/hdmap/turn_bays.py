@@ -27,7 +27,7 @@ import shapely
 from shapely.ops import substring
 
 from .. import clearance  # a module: clearance imports hdmap.lanes, which loads this package
-from .control import junction_control
+from .control import ControlPlan
 from .geometry import dedupe, end_directions, signed_angles
 from .junctions import HEADING_PROBE, junction_radii
 from .lanes import LANE_CONFIGS, MAX_TRIM_SHARE
@@ -41,7 +41,7 @@ BAY_CLASSES = ("arterial", "collector")
 GROWTH_ROOM = 1.6
 
 
-def add_turn_bays(G: nx.Graph, rules: str, traffic_lights: bool = True) -> nx.Graph:
+def add_turn_bays(G: nx.Graph, plan: ControlPlan) -> nx.Graph:
     """``G`` with a bay road split off every approach to a traffic light that has a left
     turn there, is of a ``BAY_CLASSES`` class and long enough; the bay road's edge carries
     ``bay_to`` (the signalised node) and each taper node ``taper=True``. A bay whose wider
@@ -51,7 +51,7 @@ def add_turn_bays(G: nx.Graph, rules: str, traffic_lights: bool = True) -> nx.Gr
     for node in sorted(G.nodes):
         arms = sorted(G.edges(node))
         classes = [G.edges[e]["road_class"] for e in arms]
-        if junction_control(classes, rules, traffic_lights) != "traffic_light":
+        if plan.control(node, classes) != "traffic_light":
             continue
         leaving = np.array([_leaving(G, node, arm) for arm in arms])
         bayed = [has_left and cls in BAY_CLASSES

@@ -42,6 +42,7 @@ class SuiteSpec:
     one_way_share: float = 0.0
     sidewalks: bool = False
     speeds: dict = field(default_factory=dict)
+    junction_mix: dict = field(default_factory=dict)
     roundabouts: int = 0
     persons: int = 0
     bus_lines: int = 0
@@ -81,7 +82,8 @@ class SuiteSpec:
                   if f.name not in ("densities", "styles", "seeds", "min_coverage")}
         return [ScenarioSpec(density=d, style=style, seed=s,
                              **shared | {"vehicle_mix": dict(self.vehicle_mix),
-                                         "speeds": dict(self.speeds)})
+                                         "speeds": dict(self.speeds),
+                                         "junction_mix": dict(self.junction_mix)})
                 for d in self.densities for style in self.styles for s in self.seeds]
 
     def to_dict(self) -> dict:
