@@ -345,32 +345,31 @@ def _named_numbers(text: str, option: str, sep: str, form: str) -> dict[str, flo
 
 
 def _check_speeds(speeds) -> None:
-    if not isinstance(speeds, dict):
-        raise RoadweaverError("--speed must map road classes to km/h")
-    for name, value in speeds.items():
-        if name not in ROAD_CLASSES:
-            raise RoadweaverError(f"--speed: unknown road class {name!r}; choose from "
-                                  f"{', '.join(ROAD_CLASSES)}")
-        _check_number(f"--speed {name}", value)
-        if not MIN_SPEED_KMH <= value <= MAX_SPEED_KMH:
-            raise RoadweaverError(f"--speed {name} must be {MIN_SPEED_KMH:g}..{MAX_SPEED_KMH:g} "
-                                  f"km/h, got {value:g}")
+    _check_named_numbers(speeds, "--speed", "road class", ROAD_CLASSES,
+                         (MIN_SPEED_KMH, MAX_SPEED_KMH), " km/h")
 
 
 def _check_junction_mix(mix) -> None:
-    if not isinstance(mix, dict):
-        raise RoadweaverError("--junction-mix must map junction controls to shares")
-    for name, share in mix.items():
-        if name not in MIX_CONTROLS:
-            raise RoadweaverError(f"--junction-mix: unknown junction control {name!r}; choose "
-                                  f"from {', '.join(MIX_CONTROLS)}")
-        _check_number(f"--junction-mix {name}", share)
-        if not 0 <= share <= 1:
-            raise RoadweaverError(f"--junction-mix: the share of {name} must be 0..1, got "
-                                  f"{share:g}")
+    _check_named_numbers(mix, "--junction-mix", "junction control", MIX_CONTROLS, (0.0, 1.0))
     if sum(mix.values()) > 1 + 1e-9:
         raise RoadweaverError(f"--junction-mix: the shares add up to {sum(mix.values()):g}, "
                               "more than 1")
+
+
+def _check_named_numbers(values, option: str, what: str, names: tuple[str, ...],
+                         limits: tuple[float, float], unit: str = "") -> None:
+    """A {name: number} option: every name one of ``names``, every number within ``limits``."""
+    if not isinstance(values, dict):
+        raise RoadweaverError(f"{option} must map each {what} to a number")
+    low, high = limits
+    for name, value in values.items():
+        if name not in names:
+            raise RoadweaverError(f"{option}: unknown {what} {name!r}; choose from "
+                                  f"{', '.join(names)}")
+        _check_number(f"{option} {name}", value)
+        if not low <= value <= high:
+            raise RoadweaverError(f"{option} {name} must be {low:g}..{high:g}{unit}, got "
+                                  f"{value:g}")
 
 
 def _check_vehicle_mix(mix) -> None:
