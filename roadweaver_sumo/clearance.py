@@ -24,7 +24,7 @@ import networkx as nx
 import numpy as np
 import shapely
 
-from .hdmap.lanes import LANE_CONFIGS, SIDEWALK_WIDTH
+from .hdmap.lanes import LANE_CONFIGS, SIDEWALK_WIDTH, lanes_of
 from .roadgraph import sorted_edge_list
 
 MARGIN = 1.0  # metres of open ground between the outer edges of two roads' sidewalks
@@ -84,8 +84,7 @@ def roads_too_close(G: nx.Graph, among: set | None = None) -> list[tuple[tuple, 
 
 def _half_width(data: dict) -> float:
     """Metres from a road's centreline to the outer edge of its lanes on its wider side."""
-    config = LANE_CONFIGS[data["road_class"]]
-    return config.half_width + config.width * ("bay_to" in data)
+    return LANE_CONFIGS[data["road_class"]].width * (lanes_of(data) + ("bay_to" in data))
 
 
 def _outside_junctions(G: nx.Graph, edges: list[tuple], i: np.ndarray, j: np.ndarray,

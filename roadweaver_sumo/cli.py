@@ -34,6 +34,7 @@ from .spec import (
     ScenarioSpec,
     parse_geo_origin,
     parse_junction_mix,
+    parse_lanes,
     parse_size,
     parse_speeds,
     parse_vehicle_mix,
@@ -107,7 +108,8 @@ def _rule_and_demand_fields(args) -> dict:
             "fringe_factor": args.fringe_factor, "roundabouts": args.roundabouts,
             "speeds": parse_speeds(args.speed) if args.speed is not None else {},
             "junction_mix": parse_junction_mix(args.junction_mix)
-            if args.junction_mix is not None else {}}
+            if args.junction_mix is not None else {},
+            "lanes": parse_lanes(args.lanes) if args.lanes is not None else {}}
 
 
 def _make_scenario(args) -> int:

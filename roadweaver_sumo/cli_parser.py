@@ -30,6 +30,7 @@ from .spec import (
     MAX_EGO_LENGTH_M,
     MAX_EGO_ROUTES,
     MAX_FRINGE_FACTOR,
+    MAX_LANES,
     MAX_ROUNDABOUTS,
     MAX_SEED,
     MAX_SIDE_M,
@@ -257,6 +258,12 @@ def _add_rule_and_demand_options(parser: argparse.ArgumentParser) -> None:
                         help="speed limits by road class, as netgenerate's --speed gives one "
                              "for all, e.g. arterial=70,local=30; each 5..130 km/h (default: "
                              "arterial 50, collector 40, local 30)")
+    parser.add_argument("--lanes", metavar="CLASS=N[,CLASS=N]",
+                        help="driving lanes per direction by road class, as netgenerate's "
+                             f"--lanenumber gives one count for all, e.g. arterial=3; each "
+                             f"1..{MAX_LANES}; a road that would come within another's "
+                             "clearance keeps its class's (default: arterial 2, collector 1, "
+                             "local 1)")
     parser.add_argument("--junction-mix", metavar="CONTROL=SHARE[,CONTROL=SHARE]",
                         help="shares of the junctions of three or more arms by control, of "
                              f"{', '.join(MIX_CONTROLS)}, e.g. traffic_light=0.2,"

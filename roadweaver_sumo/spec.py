@@ -47,7 +47,7 @@ LEGACY_DEPARTURES = "even"
 UNSAID = {"rules": LEGACY_RULES, "vehicle_mix": LEGACY_VEHICLE_MIX,
           "departures": LEGACY_DEPARTURES, "fringe_factor": 1.0, "one_way_share": 0.0,
           "sidewalks": False, "persons": 0, "bus_lines": 0, "speeds": {}, "roundabouts": 0,
-          "junction_mix": {}}
+          "junction_mix": {}, "lanes": {}}
 LEGACY = {"boundary": LEGACY_BOUNDARY, **UNSAID}  # spec.json leaves the ring unsaid too
 MAX_SIDE_M = 50_000.0
 MIN_SIDE_M = 200.0
@@ -64,6 +64,7 @@ MAX_EGO_ROUTES = 100
 #: them), and the speed limits one may give them
 ROAD_CLASSES = ("arterial", "collector", "local")
 MIN_SPEED_KMH, MAX_SPEED_KMH = 5.0, 130.0
+MAX_LANES = 4  # per direction, by road class (--lanes)
 DEFAULT_ROUNDABOUTS, MAX_ROUNDABOUTS = 1, 1000
 DEFAULT_EGO_LENGTH_M, MIN_EGO_LENGTH_M, MAX_EGO_LENGTH_M = 5000.0, 200.0, 100_000.0
 DEFAULT_GEO_ORIGIN = (48.137, 11.575)  # lat, lon: only a label for the local metric frame
@@ -100,6 +101,8 @@ class ScenarioSpec:
     speeds: dict = field(default_factory=dict)
     #: junction control -> share of the junctions of three or more arms (``hdmap.control``)
     junction_mix: dict = field(default_factory=dict)
+    #: lanes per direction by road class, where not the class's own (``hdmap.lane_counts``)
+    lanes: dict = field(default_factory=dict)
     #: up to this many junctions made roundabouts (``hdmap.roundabouts``)
     roundabouts: int = DEFAULT_ROUNDABOUTS
     duration: float = 3600.0
@@ -172,6 +175,9 @@ class ScenarioSpec:
         _check_vehicle_mix(self.vehicle_mix)
         _check_speeds(self.speeds)
         _check_junction_mix(self.junction_mix)
+        _check_named_numbers(self.lanes, "--lanes", "road class", ROAD_CLASSES, (1, MAX_LANES))
+        if any(isinstance(n, float) for n in self.lanes.values()):
+            raise RoadweaverError("--lanes: lane counts are whole numbers, e.g. arterial=3")
         if isinstance(self.roundabouts, bool) or not isinstance(self.roundabouts, int) or not (
                 0 <= self.roundabouts <= MAX_ROUNDABOUTS):
             raise RoadweaverError(f"--roundabouts must be a whole number 0..{MAX_ROUNDABOUTS}, "
@@ -324,6 +330,13 @@ def parse_speeds(text: str) -> dict[str, float]:
     """``"arterial=60,local=30"`` -> {"arterial": 60.0, "local": 30.0} km/h; checked by the
     spec."""
     return _named_numbers(text, "--speed", "=", "class=km/h, e.g. arterial=60")
+
+
+def parse_lanes(text: str) -> dict[str, float]:
+    """``"arterial=3,local=1"`` -> {"arterial": 3, "local": 1}: whole numbers as ints (so that
+    spec.json writes 3, not 3.0), others left for the spec to refuse."""
+    counts = _named_numbers(text, "--lanes", "=", "class=lanes, e.g. arterial=3")
+    return {name: int(n) if n.is_integer() else n for name, n in counts.items()}
 
 
 def parse_junction_mix(text: str) -> dict[str, float]:

@@ -128,7 +128,8 @@ def test_a_short_road_bending_next_to_its_junction_leaves_the_bend_to_the_juncti
                      (421.23, 2133.36), (435.04, 2134.41)])
     cfg = LANE_CONFIGS["collector"]
     road = Road(id=0, from_node=0, to_node=1, centreline=line, road_class="collector",
-                priority=cfg.priority, speed=cfg.speed, lane_width=cfg.width, sections=[])
+                priority=cfg.priority, speed=cfg.speed, lane_width=cfg.width,
+                lane_count=cfg.lanes, sections=[])
     plan_reference_lines([road], [(6.09, 4.59)])
     length = float(np.hypot(*np.diff(line, axis=0).T).sum())
     (section,) = road.sections

@@ -7,6 +7,7 @@ import networkx as nx
 from ..spec import ScenarioSpec
 from .control import DEFAULT_RULES, plan_controls
 from .junctions import add_connectors, folding_turns, make_junctions
+from .lane_counts import give_lanes
 from .lanes import SIDEWALK_WIDTH, build_road_lanes, lane_ends, make_roads, plan_reference_lines
 from .model import HDMap, Road
 from .movements import junction_plan
@@ -29,21 +30,22 @@ def build_hdmap_for(G: nx.Graph, spec: ScenarioSpec) -> HDMap:
     return build_hdmap(G, spec.geo_origin, traffic_lights=spec.traffic_lights, rules=spec.rules,
                        one_way_share=spec.one_way_share, sidewalks=spec.sidewalks,
                        speeds=spec.speeds, roundabouts=spec.roundabouts,
-                       junction_mix=spec.junction_mix)
+                       junction_mix=spec.junction_mix, lanes=spec.lanes)
 
 
 def build_hdmap(
     G: nx.Graph, geo_origin: tuple[float, float] | None = None, *, traffic_lights: bool = True,
     rules: str = DEFAULT_RULES, one_way_share: float = 0.0, sidewalks: bool = False,
     speeds: dict[str, float] | None = None, roundabouts: int = 0,
-    junction_mix: dict[str, float] | None = None,
+    junction_mix: dict[str, float] | None = None, lanes: dict[str, int] | None = None,
 ) -> HDMap:
     """Build the lane-level HD map of a RoadGraph (paper Algorithm 1).
 
     ``geo_origin`` is the (lat, lon) of the local origin, written by exporters as the map's
     geo-reference; by default ``G.graph["geo_origin"]`` if present. Junction control follows
     the regional ``rules`` (``control.RULES``); ``traffic_lights=False`` leaves out the lights
-    (suburban maps); a ``junction_mix`` (control -> share) overrides both (``control``). Up to ``one_way_share`` of the local street length becomes one-way
+    (suburban maps); a ``junction_mix`` (control -> share) overrides both (``control``).
+    ``lanes``: lanes per direction by road class, where not the class's own (``lane_counts``). Up to ``one_way_share`` of the local street length becomes one-way
     (``one_way``). ``sidewalks``: every road gets a sidewalk of ``SIDEWALK_WIDTH`` right of
     each driving direction. ``speeds``: speed limits in km/h by road class, where not the
     class's own (``lanes.LANE_CONFIGS``). Up to ``roundabouts`` junctions become roundabouts
@@ -52,6 +54,7 @@ def build_hdmap(
     RepairLaneGeometry needs no pass of its own: connectors end exactly on the lanes they join
     and junction trims leave every road a lane section (see ``lanes.MAX_TRIM_SHARE``).
     """
+    G = give_lanes(G, lanes)
     plan = plan_controls(G, rules, traffic_lights, junction_mix)
     G = add_roundabouts(G, roundabouts, plan)
     G = add_turn_bays(G, plan)

@@ -46,16 +46,17 @@ CONTROLS = ("traffic_light", "priority", "priority_stop", "right_before_left", "
 
 
 def junction_control(classes: list[str], rules: str = DEFAULT_RULES,
-                     traffic_lights: bool = True) -> str:
-    """The control of a junction whose arms have road ``classes``, under ``rules``."""
+                     traffic_lights: bool = True, lanes: list[int] | None = None) -> str:
+    """The control of a junction whose arms have road ``classes`` (and ``lanes`` per
+    direction, by default their classes'), under ``rules``."""
     degree = len(classes)
     if degree == 1:
         return "dead_end"
     if traffic_lights and signalised(classes):
         return "traffic_light"
     if degree == 2:  # a road that just goes on (its class may change)
-        lanes = {LANE_CONFIGS[c].lanes for c in classes}
-        return "zipper" if len(lanes) > 1 else "priority"
+        counts = set(lanes or (LANE_CONFIGS[c].lanes for c in classes))
+        return "zipper" if len(counts) > 1 else "priority"
     locals_only = set(classes) == {"local"}
     minor_roads = set(classes) <= {"local", "collector"}
     if rules == "de":
@@ -93,10 +94,10 @@ class ControlPlan:
     assigned: Mapping[int, str] = field(default_factory=dict)
     asked: frozenset[str] = frozenset()
 
-    def control(self, node: int, classes: list[str]) -> str:
-        """The control of junction ``node`` whose arms have road ``classes``."""
+    def control(self, node: int, classes: list[str], lanes: list[int] | None = None) -> str:
+        """The control of junction ``node`` whose arms have road ``classes`` (and ``lanes``)."""
         return self.assigned.get(node) or junction_control(classes, self.rules,
-                                                           self.traffic_lights)
+                                                           self.traffic_lights, lanes)
 
     def counts_for_mix(self, node: int) -> bool:
         """Whether ``node`` holds one of the kinds the mix asked for (a roundabout there

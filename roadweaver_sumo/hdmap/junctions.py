@@ -113,7 +113,7 @@ def make_junctions(
             id=node,
             xy=(float(nodes[node][0]), float(nodes[node][1])),
             type="priority" if node in rings else plan.control(
-                node, [roads[r].road_class for r in rids]),
+                node, [roads[r].road_class for r in rids], [roads[r].lane_count for r in rids]),
             radius=radius,
             roads=rids,
             taper=node in tapers,

@@ -77,7 +77,8 @@ END_BEND = 10.0
 
 def make_roads(G: nx.Graph, sidewalk_width: float = 0.0,
                speeds: dict[str, float] | None = None) -> dict[int, Road]:
-    """One road per RoadGraph edge with its class's lane configuration (AssignLaneConfig),
+    """One road per RoadGraph edge with its class's lane configuration (AssignLaneConfig; its
+    own lane count where ``hdmap.lane_counts`` gave it one),
     sidewalks ``sidewalk_width`` wide (0: none) and the speed limit of its class, or of
     ``speeds`` (km/h by class) where given.
 
@@ -100,6 +101,7 @@ def make_roads(G: nx.Graph, sidewalk_width: float = 0.0,
             speed=speeds[data["road_class"]] / 3.6 if data["road_class"] in (speeds or {})
             else cfg.speed,
             lane_width=cfg.width,
+            lane_count=lanes_of(data),
             sections=[],
             sidewalk_width=sidewalk_width,
             bay=None if "bay_to" not in data else "f" if data["bay_to"] == to_node else "b",
@@ -108,14 +110,20 @@ def make_roads(G: nx.Graph, sidewalk_width: float = 0.0,
     return roads
 
 
+def lanes_of(data: dict) -> int:
+    """Driving lanes per direction of a road graph edge: its own (``--lanes``,
+    ``hdmap.lane_counts``) or its class's."""
+    return data.get("lanes", LANE_CONFIGS[data["road_class"]].lanes)
+
+
 def lane_count(road: Road, direction: str) -> int:
-    """Driving lanes of one direction of ``road``: its class's, one more with a turn bay."""
-    return LANE_CONFIGS[road.road_class].lanes + (road.bay == direction)
+    """Driving lanes of one direction of ``road``: its own, one more with a turn bay."""
+    return road.lane_count + (road.bay == direction)
 
 
 def half_width(road: Road) -> float:
     """Distance from the reference line to the outer edge of the road's wider side, metres."""
-    return LANE_CONFIGS[road.road_class].half_width + road.lane_width * (road.bay is not None)
+    return road.lane_width * (road.lane_count + (road.bay is not None))
 
 
 def plan_reference_lines(roads: list[Road], trims: list[tuple[float, float]]) -> None:

@@ -101,6 +101,8 @@ class Road:
     priority: int
     speed: float
     lane_width: float
+    #: driving lanes per direction (its class's, or ``--lanes``'), before a turn bay's
+    lane_count: int
     sections: list[LaneSection]
     #: one-way roads (``hdmap.one_way``) run along their reference line: ``f`` lanes only,
     #: centred on it

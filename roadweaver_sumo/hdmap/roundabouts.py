@@ -112,14 +112,15 @@ def _build(G: nx.Graph, chosen: list[int]):
     next_node = max(G.nodes) + 1
     for node in chosen:
         centre = np.asarray(G.nodes[node]["xy"], dtype=float)
-        ports = sorted(((*_port(G, node, (node, far)), far, G.edges[node, far]["road_class"])
+        ports = sorted(((*_port(G, node, (node, far)), far, G.edges[node, far])
                         for far in sorted(G[node])), key=lambda port: port[0])
         G.remove_node(node)
         ring = list(range(next_node, next_node + len(ports)))
         next_node += len(ports)
-        for r, (_, beyond, far, road_class) in zip(ring, ports, strict=True):
+        for r, (_, beyond, far, data) in zip(ring, ports, strict=True):
             G.add_node(r, xy=(float(beyond[0][0]), float(beyond[0][1])), roundabout=node)
-            G.add_edge(r, far, coords=beyond, road_class=road_class, start=r)
+            lanes = {"lanes": data["lanes"]} if "lanes" in data else {}
+            G.add_edge(r, far, coords=beyond, road_class=data["road_class"], start=r, **lanes)
             made[(min(r, far), max(r, far))] = node
         for k, (angle, *_) in enumerate(ports):  # counter-clockwise, one way
             a, b = ring[k], ring[(k + 1) % len(ring)]

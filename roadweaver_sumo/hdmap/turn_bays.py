@@ -30,7 +30,7 @@ from .. import clearance  # a module: clearance imports hdmap.lanes, which loads
 from .control import ControlPlan
 from .geometry import dedupe, end_directions, signed_angles
 from .junctions import HEADING_PROBE, junction_radii
-from .lanes import LANE_CONFIGS, MAX_TRIM_SHARE
+from .lanes import LANE_CONFIGS, MAX_TRIM_SHARE, lanes_of
 from .movements import SHARP_LEFT_MAX, STRAIGHT_MAX
 
 BAY_LENGTH = 90.0  # m from the signalised junction's centre to the taper node
@@ -56,7 +56,7 @@ def add_turn_bays(G: nx.Graph, plan: ControlPlan) -> nx.Graph:
         leaving = np.array([_leaving(G, node, arm) for arm in arms])
         bayed = [has_left and cls in BAY_CLASSES
                  for has_left, cls in zip(_left_turns(leaving), classes, strict=True)]
-        length = _bay_length(leaving, classes, bayed)
+        length = _bay_length(leaving, classes, [lanes_of(G.edges[e]) for e in arms], bayed)
         for (u, v), bay in zip(arms, bayed, strict=True):
             if bay:
                 wanted.setdefault(tuple(sorted((u, v))), {})[node] = length
@@ -94,7 +94,8 @@ def _split(G: nx.Graph, bays: dict[tuple[int, int], dict[int, float]]):
         for k in range(len(nodes) - 1):
             a, b = nodes[k], nodes[k + 1]
             piece = dedupe(np.asarray(substring(line, bounds[k], bounds[k + 1]).coords))
-            attrs = {"coords": piece, "road_class": data["road_class"], "start": a}
+            attrs = {"coords": piece, "road_class": data["road_class"], "start": a,
+                     **({"lanes": data["lanes"]} if "lanes" in data else {})}
             if a in ends or b in ends:
                 attrs["bay_to"] = a if a in ends else b
                 bay_of[(min(a, b), max(a, b))] = (u, v)
@@ -102,13 +103,14 @@ def _split(G: nx.Graph, bays: dict[tuple[int, int], dict[int, float]]):
     return G, bay_of
 
 
-def _bay_length(leaving: np.ndarray, classes: list[str], bayed: list[bool]) -> float:
+def _bay_length(leaving: np.ndarray, classes: list[str], lanes: list[int],
+                bayed: list[bool]) -> float:
     """How long the bay roads of one light's junction are: ``BAY_LENGTH``, or long enough
     that their trim at the junction (its radius with the bays' extra lanes, and room to grow)
     stays within ``MAX_TRIM_SHARE`` of them."""
-    configs = [LANE_CONFIGS[c] for c in classes]
-    widths = [c.half_width + c.width * bay for c, bay in zip(configs, bayed, strict=True)]
-    radius = junction_radii(leaving, np.array(widths), np.array([c.width for c in configs]),
+    lane_widths = np.array([LANE_CONFIGS[c].width for c in classes])
+    widths = lane_widths * (np.array(lanes) + np.array(bayed))
+    radius = junction_radii(leaving, widths, lane_widths,
                             [len(classes)])[0]
     return max(BAY_LENGTH, GROWTH_ROOM * radius / MAX_TRIM_SHARE)
 

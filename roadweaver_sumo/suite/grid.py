@@ -43,6 +43,7 @@ class SuiteSpec:
     sidewalks: bool = False
     speeds: dict = field(default_factory=dict)
     junction_mix: dict = field(default_factory=dict)
+    lanes: dict = field(default_factory=dict)
     roundabouts: int = 0
     persons: int = 0
     bus_lines: int = 0
@@ -83,7 +84,8 @@ class SuiteSpec:
         return [ScenarioSpec(density=d, style=style, seed=s,
                              **shared | {"vehicle_mix": dict(self.vehicle_mix),
                                          "speeds": dict(self.speeds),
-                                         "junction_mix": dict(self.junction_mix)})
+                                         "junction_mix": dict(self.junction_mix),
+                                         "lanes": dict(self.lanes)})
                 for d in self.densities for style in self.styles for s in self.seeds]
 
     def to_dict(self) -> dict:
