@@ -297,9 +297,9 @@ def _add_suite_commands(sub, make: argparse.ArgumentParser) -> None:
                        help="length of each ego route in metres (± 10 %%)")
     suite.add_argument("--min-coverage", metavar="KIND=N[,KIND=N]",
                        help="every scenario holds at least N of each rule situation (a junction "
-                       "control such as traffic_light or allway_stop, roundabouts, one_way_edges, "
-                       "turn_bays, protected_lefts, pedestrian_crossings, speed_limit_changes); "
-                       "one that "
+                       "control such as traffic_light or allway_stop, roundabouts, "
+                       "roundabout_entries, one_way_edges, turn_bays, protected_lefts, "
+                       "pedestrian_crossings, speed_limit_changes, bus_stops); one that "
                        "falls short is built again with its next seed (+1000), up to 8 times")
     suite.add_argument("--out", type=Path, required=True, help="suite folder")
     suite.add_argument("--force", action="store_true", help="replace an existing suite folder")

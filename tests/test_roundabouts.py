@@ -52,6 +52,7 @@ def test_a_collector_crossing_becomes_a_ring_that_runs_counter_clockwise(tmp_pat
     assert states == {True: {"M"}, False: {"m"}}  # the ring goes first, entries yield
     coverage = rule_coverage(net)
     assert coverage["roundabouts"] == 1 and coverage["junction_controls"] == {}
+    assert coverage["roundabout_entries"] == len(ring), "every arm enters the ring"
 
 
 def test_no_roundabout_where_arterials_meet_or_none_is_asked():

@@ -24,6 +24,8 @@ def test_a_scenario_without_the_asked_situation_is_replaced_by_its_next_seed(tmp
     assert json.loads((folder / "spec.json").read_text())["seed"] == RESEED_STEP
     counts = coverage(folder)
     assert counts["turn_bays"] >= 1 and counts["traffic_light"] >= 1
+    report = json.loads((folder / "report.json").read_text())
+    assert counts["bus_stops"] == report["generation"]["bus_lines"]["stops"] > 0
     assert not (out / "grid-d20-1000x1000-s0-v5").exists()
     problems = check_suite(out, regenerate=True)  # rebuilt from the seed that made it
     assert f"grid-d20-1000x1000-s{RESEED_STEP}-v5" in problems and not any(problems.values())

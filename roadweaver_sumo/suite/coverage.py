@@ -20,8 +20,9 @@ from ..spec import ScenarioSpec
 
 #: what a minimum can be asked for: a junction control (SUMO node types, junctions of three
 #: or more roads), or one of the other counts of ``net.rules``
-KINDS = (*(c for c in CONTROLS if c != "dead_end"), "roundabouts", "one_way_edges",
-         "turn_bays", "protected_lefts", "pedestrian_crossings", "speed_limit_changes")
+KINDS = (*(c for c in CONTROLS if c != "dead_end"), "roundabouts", "roundabout_entries",
+         "one_way_edges", "turn_bays", "protected_lefts", "pedestrian_crossings",
+         "speed_limit_changes", "bus_stops")
 RESEED_STEP = 1000  # the next seed tried: far from the grid's own seeds (0-9 and the like)
 MAX_RESEEDS = 8
 
@@ -44,11 +45,13 @@ def parse_min_coverage(text: str) -> dict[str, int]:
 
 def coverage(folder: Path) -> dict[str, int]:
     """The counts of every ``KINDS`` situation in a built scenario's ``report.json``."""
-    rules = json.loads((Path(folder) / "report.json").read_text(encoding="utf-8"))["net"]["rules"]
+    report = json.loads((Path(folder) / "report.json").read_text(encoding="utf-8"))
+    rules = report["net"]["rules"]
     counts = {kind: rules["junction_controls"].get(kind, 0) for kind in CONTROLS}
+    counts["bus_stops"] = (report["generation"].get("bus_lines") or {}).get("stops", 0)
     counts["pedestrian_crossings"] = sum(rules.get("pedestrian_crossings", {}).values())
-    for kind in ("roundabouts", "one_way_edges", "turn_bays", "protected_lefts",
-                 "speed_limit_changes"):
+    for kind in ("roundabouts", "roundabout_entries", "one_way_edges", "turn_bays",
+                 "protected_lefts", "speed_limit_changes"):
         counts[kind] = rules.get(kind, 0)
     return {kind: counts[kind] for kind in KINDS}
 

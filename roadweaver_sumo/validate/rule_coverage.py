@@ -28,10 +28,12 @@ def rule_coverage(net: sumolib.net.Net) -> dict:
     zipper merges where a road loses a lane; a roundabout's ring nodes are its own count),
     turns into junctions by the rule that governs them, one-way road edges, turn bays
     (approaches to a light that gain lanes shortly before it), protected left turns,
-    roundabouts, pedestrian crossings (at lights, or zebras where pedestrians go first), the
+    roundabouts and their entries (roads into the ring), pedestrian crossings (at lights, or zebras where pedestrians go first), the
     speed limits in km/h and the speed-limit changes where a road goes straight on into one
     of another limit. Protected lefts need the net read with its programs."""
     rings = {node for ring in net.getRoundabouts() for node in ring.getNodes()}
+    entries = sum(e.getToNode().getID() in rings and e.getFromNode().getID() not in rings
+                  for e in road_edges(net))
     controls = Counter(node.getType() for node in road_junctions(net) if node.getID() not in rings
                        and (len(_neighbours(node)) >= 3 or node.getType() == "zipper"))
     approaches: Counter = Counter()
@@ -54,6 +56,7 @@ def rule_coverage(net: sumolib.net.Net) -> dict:
             "one_way_edges": one_way,
             "turn_bays": sum(_opens_a_bay(edge) for edge in edges),
             "roundabouts": len(net.getRoundabouts()),
+            "roundabout_entries": entries,
             "protected_lefts": _protected_lefts(net),
             "pedestrian_crossings": dict(sorted(crossings.items())),
             "speed_limits_kmh": sorted({round(e.getSpeed() * 3.6) for e in road_edges(net)}),
@@ -138,7 +141,8 @@ def rule_lines(rules: dict) -> list[str]:
 
     turns = (f"turns by rule: {counts(rules['turns_by_rule'])}; one-way edges "
              f"{rules['one_way_edges']}; turn bays {rules.get('turn_bays', 0)}, protected lefts "
-             f"{rules.get('protected_lefts', 0)}; roundabouts {rules.get('roundabouts', 0)}; "
+             f"{rules.get('protected_lefts', 0)}; roundabouts {rules.get('roundabouts', 0)} "
+             f"({rules.get('roundabout_entries', 0)} entries); "
              f"speed limits {rules['speed_limits_kmh']} km/h, "
              f"{rules['speed_limit_changes']} changes; pedestrian crossings "
              f"{counts(rules.get('pedestrian_crossings', {}))}")
