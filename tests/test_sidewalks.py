@@ -172,3 +172,24 @@ def test_a_walking_area_turn_between_ends_that_cross_each_other_loads_as_written
     assert not _aligned_points(left, right, left_end, right_end)
     middle = [ids.xy(n) for n in _middle_edge(ids, start, end)]
     assert _aligned_points(left, right, *middle) and _aligned_points(*middle, left_end, right_end)
+
+
+def test_a_walking_area_lanelet_whose_bounds_would_cross_goes_round_by_a_middle_edge():
+    """Two sidewalk ends at a wide corner (taken from the main job's map with sidewalks): a
+    lanelet straight from one to the other passes lanelet2's orientation test, but its left
+    and right bounds cross, a bow-tie outline that CommonRoad and shapely reject. It is split
+    at a middle edge whose two halves are simple four-sided lanelets."""
+    from shapely.geometry import Polygon
+
+    from roadweaver_sumo.export.lanelet2 import _Ids
+    from roadweaver_sumo.export.lanelet2_walks import _aligned_points, _middle_edge
+
+    ids = _Ids()
+    first = ids.nodes([(1171.79, 1050.75), (1172.10, 1052.72), (1168.47, 1053.29),
+                       (1168.43, 1051.29)])
+    la, ra, lb, rb = (ids.xy(first + k) for k in range(4))
+    assert not Polygon([la, lb, rb, ra]).is_valid, "the straight lanelet is a bow-tie"
+    assert not _aligned_points(la, ra, lb, rb)
+    ml, mr = (ids.xy(n) for n in _middle_edge(ids, (first, first + 1), (first + 2, first + 3)))
+    assert Polygon([la, ml, mr, ra]).is_valid and Polygon([ml, lb, rb, mr]).is_valid
+    assert _aligned_points(la, ra, ml, mr) and _aligned_points(ml, mr, lb, rb)

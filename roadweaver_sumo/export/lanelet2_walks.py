@@ -24,7 +24,7 @@ VIRTUAL = (("type", "virtual"),)
 ZEBRA = (("type", "zebra_marking"),)
 MIDDLE_HALF_WIDTH = 1.0  # m: the middle edge of a lanelet pair across a sharp turn
 TURNS = 16  # directions tried for that edge
-MIDDLE_REACH = (1.0, 2.0, 3.0)  # m: how far from the middle it may be moved
+MIDDLE_REACH = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0)  # m: how far from the middle it may be moved
 MIN_BOUND_M = 0.05
 
 
@@ -101,7 +101,8 @@ def _middle_edge(ids, start: tuple[int, int], end: tuple[int, int]) -> tuple[int
     """New (left, right) nodes ``MIDDLE_HALF_WIDTH`` either side of a point near the middle of
     the two edges, turned so that lanelet2 reads both halves as written: the first turn that
     does at the middle, else at points up to ``MIDDLE_REACH`` m from it (two edges that cross
-    each other, at a tight corner, need the middle edge off to one side); else across the way
+    each other, at a tight corner, need the middle edge off to one side, and the ends of a wide
+    corner's sidewalks one far enough out that no half's bounds cross); else across the way
     from the one edge's centre to the other's."""
     la, ra, lb, rb = (ids.xy(n) for n in (*start, *end))
     centre = (la + ra + lb + rb) / 4
@@ -124,11 +125,20 @@ def _aligned_points(la, ra, lb, rb) -> bool:
     """lanelet2's test (``geometry::align`` when it loads a lanelet): the middle of the right
     bound must lie right of the left bound and the middle of the left bound left of the right
     one, else it turns that bound round. Bounds shorter than ``MIN_BOUND_M`` fail: their side
-    is a rounding error."""
+    is a rounding error. The two bounds must not cross either: the lanelet's outline would be
+    a bow-tie, which lanelet2 loads but CommonRoad, shapely and area checks reject."""
     if min(np.hypot(*(lb - la)), np.hypot(*(rb - ra))) < MIN_BOUND_M:
         return False
     return (_cross(lb - la, (ra + rb) / 2 - la) < -MIN_BOUND_M
-            and _cross(rb - ra, (la + lb) / 2 - ra) > MIN_BOUND_M)
+            and _cross(rb - ra, (la + lb) / 2 - ra) > MIN_BOUND_M
+            and not _segments_cross(la, lb, ra, rb))
+
+
+def _segments_cross(a, b, c, d) -> bool:
+    """Whether segment a-b and segment c-d cross (each one's ends on either side of the
+    other's line)."""
+    return (_cross(b - a, c - a) * _cross(b - a, d - a) < 0
+            and _cross(d - c, a - c) * _cross(d - c, b - c) < 0)
 
 
 def _cross(a, b) -> float:
