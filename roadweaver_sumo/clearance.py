@@ -8,14 +8,15 @@ meets another at too sharp an angle (paper §III-C, clean-up): the road less wor
 and the density control places local roads elsewhere.
 
 The clearance of two roads is the sum of their half widths (lanes x lane width of their class,
-``hdmap.lanes.LANE_CONFIGS``, a lane more on a turn bay's road: ``hdmap.turn_bays``), a
-sidewalk on each road's side of the gap (``hdmap.lanes.SIDEWALK_WIDTH``) and :data:`MARGIN`.
-The sidewalks count whether or not the map draws them: asking for ``--sidewalks`` must not
-move a road, and a map without them keeps the verge real streets have. The expansion's clean-up keeps roads apart by it, and the turn bays are only
-added where their wider roads keep it too. Near a junction two roads are close by
-nature: within :data:`JUNCTION_REACH` clearances of a junction node of either road they may
-come closer (the junction's shape covers that ground in every export); beyond it they may not,
-and two roads that leave a junction side by side and stay so are an overlap.
+``hdmap.lanes.LANE_CONFIGS``, a lane more on a turn bay's road: ``hdmap.turn_bays``), a sidewalk
+on each road's side of the gap (``hdmap.lanes.SIDEWALK_WIDTH``) and :data:`MARGIN`. The
+sidewalks count whether or not the map draws them: asking for ``--sidewalks`` must not move a
+road, and a map without them keeps the verge real streets have. The expansion's clean-up keeps
+roads apart by it, and the turn bays are only added where their wider roads keep it too. Near a
+junction two roads are close by nature: within :data:`JUNCTION_REACH` clearances of a junction
+node of either road they may come closer (the junction's shape covers that ground in every
+export); beyond it they may not, and two roads that leave a junction side by side and stay so
+are an overlap.
 """
 
 from __future__ import annotations

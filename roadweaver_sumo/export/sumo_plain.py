@@ -68,12 +68,12 @@ def _add_location(root: etree._Element, hd: HDMap) -> None:
 
 BORDER_M = 1.0  # a dead end this close to the map border is where a road left the map
 #: Corner radius (m) of a junction with sidewalks, at the sidewalk's outer edge (SUMO's default
-#: 4 m). On tight corners a right turn crosses both
-#: crossings near the corner, at an angle, and SUMO's drivers, who judge a walker's distance
-#: along the crossing as if they crossed it square, pass walkers who then step into the car's
-#: side. 2 km maps with 100 walkers (grid and mixed, densities 10-60): a vehicle-person
-#: collision on 7 of 50 maps at 4 m, 4 of 50 at 8 m; 12 m left 2 but made long left turns
-#: meet at the exits of arterial lights (2 junction collisions, 1 map with 2.5 % teleports).
+#: 4 m). On tight corners a right turn crosses both crossings near the corner, at an angle, and
+#: SUMO's drivers, who judge a walker's distance along the crossing as if they crossed it
+#: square, pass walkers who then step into the car's side. 2 km maps with 100 walkers (grid and
+#: mixed, densities 10-60): a vehicle-person collision on 7 of 50 maps at 4 m, 4 of 50 at 8 m;
+#: 12 m left 2 but made long left turns meet at the exits of arterial lights (2 junction
+#: collisions, 1 map with 2.5 % teleports).
 SIDEWALK_CORNER_RADIUS = 8.0
 
 

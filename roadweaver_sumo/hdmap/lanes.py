@@ -77,10 +77,10 @@ END_BEND = 10.0
 
 def make_roads(G: nx.Graph, sidewalk_width: float = 0.0,
                speeds: dict[str, float] | None = None) -> dict[int, Road]:
-    """One road per RoadGraph edge with its class's lane configuration (AssignLaneConfig; its
-    own lane count where ``hdmap.lane_counts`` gave it one),
-    sidewalks ``sidewalk_width`` wide (0: none) and the speed limit of its class, or of
-    ``speeds`` (km/h by class) where given.
+    """One road per RoadGraph edge with its class's lane configuration (AssignLaneConfig; its own
+    lane count where ``hdmap.lane_counts`` gave it one), sidewalks ``sidewalk_width`` wide
+    (0: none) and the speed limit of its class, or of ``speeds`` (km/h by class) where
+    given.
 
     Roads are numbered in sorted node-pair order so ids do not depend on insertion order;
     centrelines lose zero-length segments (RefineRoadGraph: geometric regularisation).

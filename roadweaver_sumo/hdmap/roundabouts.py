@@ -41,9 +41,9 @@ RING_STEP = 3.0  # m between the ring's polyline vertices
 def add_roundabouts(G: nx.Graph, count: int, plan: ControlPlan) -> nx.Graph:
     """``G`` with up to ``count`` junctions turned into roundabouts: those of three or four
     collector or local arms without a light (``plan``) where a collector meets, nor a kind a
-    junction mix asked for, the most collector arms
-    and arms first, ``MIN_SPACING`` apart; one whose ring or arms come within another road's
-    clearance (``clearance.roads_too_close``) is left out. ``G`` itself where none is made."""
+    junction mix asked for, the most collector arms and arms first, ``MIN_SPACING`` apart;
+    one whose ring or arms come within another road's clearance
+    (``clearance.roads_too_close``) is left out. ``G`` itself where none is made."""
     if count <= 0:
         return G
     chosen: list[int] = []
