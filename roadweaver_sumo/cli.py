@@ -29,9 +29,7 @@ from . import __version__, children
 from .cli_drive import drive_command, drive_suite_command
 from .cli_parser import EXIT_BAD_INPUT, EXIT_FAILED_CHECKS, EXIT_INTERNAL_ERROR, PROG, build_parser
 from .errors import RoadweaverError
-from .spec import (
-    PRIOR_RANGES,
-    ScenarioSpec,
+from .option_text import (
     parse_geo_origin,
     parse_junction_mix,
     parse_lanes,
@@ -39,6 +37,7 @@ from .spec import (
     parse_speeds,
     parse_vehicle_mix,
 )
+from .spec import PRIOR_RANGES, ScenarioSpec
 from .staging import remove_staged
 
 

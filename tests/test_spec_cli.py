@@ -7,7 +7,8 @@ import pytest
 from roadweaver_sumo.cli import main
 from roadweaver_sumo.errors import RoadweaverError
 from roadweaver_sumo.hdmap.lanes import LANE_CONFIGS
-from roadweaver_sumo.spec import ROAD_CLASSES, ScenarioSpec, parse_size
+from roadweaver_sumo.option_text import parse_size
+from roadweaver_sumo.spec import ROAD_CLASSES, ScenarioSpec
 
 
 def test_parse_size_square_and_rectangle():
