@@ -83,6 +83,13 @@ def roads_too_close(G: nx.Graph, among: set | None = None) -> list[tuple[tuple, 
     return pairs
 
 
+def crowded(G: nx.Graph, made: dict) -> set:
+    """What made the roads that come within another road's clearance (``made``: sorted edge
+    -> what made that road, a turn bay or a roundabout): the makings to leave out before
+    trying again without them."""
+    return {made[e] for pair in roads_too_close(G, among=set(made)) for e in pair if e in made}
+
+
 def _half_width(data: dict) -> float:
     """Metres from a road's centreline to the outer edge of its lanes on its wider side."""
     return LANE_CONFIGS[data["road_class"]].width * (lanes_of(data) + ("bay_to" in data))

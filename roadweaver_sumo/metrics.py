@@ -1,9 +1,10 @@
 """Topology and orientation measures of an undirected road graph (DESIGN.md, "Metrics").
 
-All functions take a graph in the RoadGraph convention (node ``xy``, edge ``coords``). Road nodes
-are nodes whose degree is not 2: intersections and dead ends, a roundabout's ring nodes counted
-as the one junction they are (as a planner, or osmnx's consolidated intersections, counts it). The same definitions are used by
-the generator's density control, by the validation report and by the tests.
+All functions take a graph in the RoadGraph convention (node ``xy``, edge ``coords``). Road
+nodes are nodes whose degree is not 2: intersections and dead ends, a roundabout's ring nodes
+counted as the one junction they are (as a planner, or osmnx's consolidated intersections,
+counts it). The same definitions are used by the generator's density control, by the validation
+report and by the tests.
 """
 
 from __future__ import annotations

@@ -42,17 +42,18 @@ def build_hdmap(
     """Build the lane-level HD map of a RoadGraph (paper Algorithm 1).
 
     ``geo_origin`` is the (lat, lon) of the local origin, written by exporters as the map's
-    geo-reference; by default ``G.graph["geo_origin"]`` if present. Junction control follows
-    the regional ``rules`` (``control.RULES``); ``traffic_lights=False`` leaves out the lights
+    geo-reference; by default ``G.graph["geo_origin"]`` if present. Junction control follows the
+    regional ``rules`` (``control.RULES``); ``traffic_lights=False`` leaves out the lights
     (suburban maps); a ``junction_mix`` (control -> share) overrides both (``control``).
-    ``lanes``: lanes per direction by road class, where not the class's own (``lane_counts``). Up to ``one_way_share`` of the local street length becomes one-way
-    (``one_way``). ``sidewalks``: every road gets a sidewalk of ``SIDEWALK_WIDTH`` right of
-    each driving direction. ``speeds``: speed limits in km/h by road class, where not the
-    class's own (``lanes.LANE_CONFIGS``). Up to ``roundabouts`` junctions become roundabouts
+    ``lanes``: lanes per direction by road class, where not the class's own (``lane_counts``).
+    Up to ``one_way_share`` of the local street length becomes one-way (``one_way``).
+    ``sidewalks``: every road gets a sidewalk of ``SIDEWALK_WIDTH`` right of each driving
+    direction. ``speeds``: speed limits in km/h by road class, where not the class's own
+    (``lanes.LANE_CONFIGS``). Up to ``roundabouts`` junctions become roundabouts
     (``roundabouts``). Approaches to traffic lights get left-turn bays (``turn_bays``;
-    ``HDMap.graph`` is then the road graph with their taper nodes).
-    RepairLaneGeometry needs no pass of its own: connectors end exactly on the lanes they join
-    and junction trims leave every road a lane section (see ``lanes.MAX_TRIM_SHARE``).
+    ``HDMap.graph`` is then the road graph with their taper nodes). RepairLaneGeometry needs no
+    pass of its own: connectors end exactly on the lanes they join and junction trims leave
+    every road a lane section (see ``lanes.MAX_TRIM_SHARE``).
     """
     G = give_lanes(G, lanes)
     plan = plan_controls(G, rules, traffic_lights, junction_mix)

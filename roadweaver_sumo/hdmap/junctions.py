@@ -85,10 +85,10 @@ def make_junctions(
     plan: ControlPlan | None = None, tapers: dict[int, float] | None = None,
     rings: dict[int, int] | None = None,
 ) -> dict[int, Junction]:
-    """One junction per node with its incident roads, control (``plan``, by default the
-    default rule set's) and trim radius; ``tapers``: the taper nodes of turn bays (``turn_bays``) and the radius each
-    needs, where the through lanes move aside; ``rings``: a roundabout's ring nodes
-    (``roundabouts``) and the junction each replaced: priority junctions, whose entries
+    """One junction per node with its incident roads, control (``plan``, by default the default
+    rule set's) and trim radius; ``tapers``: the taper nodes of turn bays (``turn_bays``) and
+    the radius each needs, where the through lanes move aside; ``rings``: a roundabout's ring
+    nodes (``roundabouts``) and the junction each replaced: priority junctions, whose entries
     yield to the ring."""
     plan, tapers, rings = plan or ControlPlan(), tapers or {}, rings or {}
     incident: dict[int, list[int]] = defaultdict(list)

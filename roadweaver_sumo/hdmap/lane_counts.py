@@ -31,8 +31,7 @@ def give_lanes(G: nx.Graph, lanes: dict[str, int] | None) -> nx.Graph:
             if data["lanes"] > LANE_CONFIGS[data["road_class"]].lanes:
                 widened.add((min(u, v), max(u, v)))
     while widened:
-        crowded = {e for pair in clearance.roads_too_close(G, among=widened) for e in pair
-                   if e in widened}
+        crowded = clearance.crowded(G, {edge: edge for edge in widened})
         if not crowded:
             break
         for u, v in crowded:

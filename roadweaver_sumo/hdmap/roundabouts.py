@@ -43,7 +43,7 @@ def add_roundabouts(G: nx.Graph, count: int, plan: ControlPlan) -> nx.Graph:
     collector or local arms without a light (``plan``) where a collector meets, nor a kind a
     junction mix asked for, the most collector arms and arms first, ``MIN_SPACING`` apart;
     one whose ring or arms come within another road's clearance
-    (``clearance.roads_too_close``) is left out. ``G`` itself where none is made."""
+    (``clearance.crowded``) is left out. ``G`` itself where none is made."""
     if count <= 0:
         return G
     chosen: list[int] = []
@@ -56,8 +56,7 @@ def add_roundabouts(G: nx.Graph, count: int, plan: ControlPlan) -> nx.Graph:
             chosen.append(node)
     while chosen:
         ringed, ring_of = _build(G, chosen)
-        crowded = {ring_of[e] for pair in clearance.roads_too_close(ringed, among=set(ring_of))
-                   for e in pair if e in ring_of}
+        crowded = clearance.crowded(ringed, ring_of)
         if not crowded:
             return ringed
         chosen = [node for node in chosen if node not in crowded]
@@ -119,8 +118,7 @@ def _build(G: nx.Graph, chosen: list[int]):
         next_node += len(ports)
         for r, (_, beyond, far, data) in zip(ring, ports, strict=True):
             G.add_node(r, xy=(float(beyond[0][0]), float(beyond[0][1])), roundabout=node)
-            lanes = {"lanes": data["lanes"]} if "lanes" in data else {}
-            G.add_edge(r, far, coords=beyond, road_class=data["road_class"], start=r, **lanes)
+            G.add_edge(r, far, **{**data, "coords": beyond, "start": r})
             made[(min(r, far), max(r, far))] = node
         for k, (angle, *_) in enumerate(ports):  # counter-clockwise, one way
             a, b = ring[k], ring[(k + 1) % len(ring)]

@@ -45,7 +45,7 @@ def add_turn_bays(G: nx.Graph, plan: ControlPlan) -> nx.Graph:
     """``G`` with a bay road split off every approach to a traffic light that has a left
     turn there, is of a ``BAY_CLASSES`` class and long enough; the bay road's edge carries
     ``bay_to`` (the signalised node) and each taper node ``taper=True``. A bay whose wider
-    road would come within another road's clearance (``clearance.roads_too_close``) is left
+    road would come within another road's clearance (``clearance.crowded``) is left
     out. ``G`` itself is returned where no approach gets a bay, else a copy."""
     wanted: dict[tuple[int, int], dict[int, float]] = {}  # edge -> {light: bay length}
     for node in sorted(G.nodes):
@@ -64,8 +64,7 @@ def add_turn_bays(G: nx.Graph, plan: ControlPlan) -> nx.Graph:
             if _length(G, edge) >= sum(ends.values()) + MIN_LEFT_OVER}
     while bays:  # leave out the bays whose wider road comes too close to another road
         split, bay_of = _split(G, bays)
-        crowded = {bay_of[e] for pair in clearance.roads_too_close(split, among=set(bay_of))
-                   for e in pair if e in bay_of}
+        crowded = clearance.crowded(split, bay_of)
         if not crowded:
             return split
         bays = {edge: ends for edge, ends in bays.items() if edge not in crowded}
@@ -94,8 +93,7 @@ def _split(G: nx.Graph, bays: dict[tuple[int, int], dict[int, float]]):
         for k in range(len(nodes) - 1):
             a, b = nodes[k], nodes[k + 1]
             piece = dedupe(np.asarray(substring(line, bounds[k], bounds[k + 1]).coords))
-            attrs = {"coords": piece, "road_class": data["road_class"], "start": a,
-                     **({"lanes": data["lanes"]} if "lanes" in data else {})}
+            attrs = {**data, "coords": piece, "start": a}
             if a in ends or b in ends:
                 attrs["bay_to"] = a if a in ends else b
                 bay_of[(min(a, b), max(a, b))] = (u, v)
