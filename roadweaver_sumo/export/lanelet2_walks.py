@@ -94,7 +94,7 @@ def _aligned(ids, start: tuple[int, int], end: tuple[int, int]) -> bool:
     """Whether lanelet2 reads a lanelet from edge ``start`` to edge ``end`` (node pairs
     (left, right)) as written: its loader turns a bound round where the bounds' ends lie
     closer crosswise than pairwise, and a lanelet so turned follows nothing."""
-    return _aligned_points(*map(ids.xy, start), *map(ids.xy, end))
+    return bool(_aligned_points(*map(ids.xy, start), *map(ids.xy, end)))
 
 
 def _middle_edge(ids, start: tuple[int, int], end: tuple[int, int]) -> tuple[int, int]:
@@ -103,46 +103,51 @@ def _middle_edge(ids, start: tuple[int, int], end: tuple[int, int]) -> tuple[int
     does at the middle, else at points up to ``MIDDLE_REACH`` m from it (two edges that cross
     each other, at a tight corner, need the middle edge off to one side, and the ends of a wide
     corner's sidewalks one far enough out that no half's bounds cross); else across the way
-    from the one edge's centre to the other's."""
+    from the one edge's centre to the other's. Every place and turn is tested at once."""
     la, ra, lb, rb = (ids.xy(n) for n in (*start, *end))
     centre = (la + ra + lb + rb) / 4
     ahead = (lb + rb) / 2 - (la + ra) / 2
     best = np.arctan2(ahead[1], ahead[0]) + np.pi / 2  # left of the way ahead
     turns = best + np.arange(TURNS) * 2 * np.pi / TURNS
-    places = [centre] + [centre + reach * np.array([np.cos(a), np.sin(a)])
-                         for reach in MIDDLE_REACH for a in turns]
-    for place in places:
-        for angle in turns:
-            across = MIDDLE_HALF_WIDTH * np.array([np.cos(angle), np.sin(angle)])
-            if _aligned_points(la, ra, place + across, place - across) and _aligned_points(
-                    place + across, place - across, lb, rb):
-                return (ids.node(place + across), ids.node(place - across))
+    unit = np.stack([np.cos(turns), np.sin(turns)], axis=1)
+    places = np.concatenate([[centre], (centre + np.multiply.outer(
+        np.array(MIDDLE_REACH), unit)).reshape(-1, 2)])
+    across = MIDDLE_HALF_WIDTH * unit
+    left, right = places[:, None] + across, places[:, None] - across  # (place, turn, xy)
+    fits = (_aligned_points(la, ra, left, right) & _aligned_points(left, right, lb, rb)).ravel()
+    if fits.any():
+        first = np.unravel_index(np.argmax(fits), left.shape[:2])
+        return (ids.node(left[first]), ids.node(right[first]))
     across = MIDDLE_HALF_WIDTH * np.array([np.cos(best), np.sin(best)])
     return (ids.node(centre + across), ids.node(centre - across))
 
 
-def _aligned_points(la, ra, lb, rb) -> bool:
+def _aligned_points(la, ra, lb, rb):
     """lanelet2's test (``geometry::align`` when it loads a lanelet): the middle of the right
     bound must lie right of the left bound and the middle of the left bound left of the right
     one, else it turns that bound round. Bounds shorter than ``MIN_BOUND_M`` fail: their side
     is a rounding error. The two bounds must not cross either: the lanelet's outline would be
-    a bow-tie, which lanelet2 loads but CommonRoad, shapely and area checks reject."""
-    if min(np.hypot(*(lb - la)), np.hypot(*(rb - ra))) < MIN_BOUND_M:
-        return False
-    return (_cross(lb - la, (ra + rb) / 2 - la) < -MIN_BOUND_M
-            and _cross(rb - ra, (la + lb) / 2 - ra) > MIN_BOUND_M
-            and not _segments_cross(la, lb, ra, rb))
+    a bow-tie, which lanelet2 loads but CommonRoad, shapely and area checks reject. Points are
+    arrays of shape (..., 2); the answer has their shape less the last axis."""
+    long_enough = np.minimum(_length(lb - la), _length(rb - ra)) >= MIN_BOUND_M
+    return (long_enough & (_cross(lb - la, (ra + rb) / 2 - la) < -MIN_BOUND_M)
+            & (_cross(rb - ra, (la + lb) / 2 - ra) > MIN_BOUND_M)
+            & ~_segments_cross(la, lb, ra, rb))
 
 
-def _segments_cross(a, b, c, d) -> bool:
+def _segments_cross(a, b, c, d):
     """Whether segment a-b and segment c-d cross (each one's ends on either side of the
     other's line)."""
-    return (_cross(b - a, c - a) * _cross(b - a, d - a) < 0
-            and _cross(d - c, a - c) * _cross(d - c, b - c) < 0)
+    return ((_cross(b - a, c - a) * _cross(b - a, d - a) < 0)
+            & (_cross(d - c, a - c) * _cross(d - c, b - c) < 0))
 
 
-def _cross(a, b) -> float:
-    return float(a[0] * b[1] - a[1] * b[0])
+def _cross(a, b):
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def _length(v):
+    return np.hypot(v[..., 0], v[..., 1])
 
 
 def _leaving(ends: dict, port: tuple) -> tuple[int, int]:
