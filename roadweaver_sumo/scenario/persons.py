@@ -35,6 +35,13 @@ PERSONS_FILE = "persons.rou.xml"
 _SAMPLE, _ROUTED = "persons.sample.tmp.xml", "persons.routed.tmp.xml"
 MIN_WALK_M, MAX_WALK_M = 100.0, 1000.0  # straight-line distance of the walk's two edges
 MAX_ROUTE_M = 2500.0  # the walk along its edges: 32 min at SUMO's 1.3 m/s
+#: The walkers' vType: SUMO's pedestrian but 1 m long (SUMO's 0.215 m is a body's depth).
+#: SUMO's drivers take a walker on a crossing for gone once the walker's back has passed the
+#: car's side as if the car crossed square; a car turning across the crossing at an angle
+#: then started while its corner still reached the walker. A 1 m walker (the room a driver
+#: leaves behind a person) keeps them waiting until the walker is clear: on 50 maps x 6
+#: simulation seeds with 100 walkers, runs with a vehicle-person collision 18 of 300 -> 3.
+WALKER_TYPE = {"id": "walker", "vClass": "pedestrian", "length": "1.0"}
 OVERSUPPLY, MAX_ATTEMPTS = 1.25, 4
 
 
@@ -52,8 +59,10 @@ def write_persons(out_dir: Path, *, persons: int, duration: float, seed: int,
     times = np.sort(rng.uniform(0.0, duration, persons)) if departures == "random" else \
         np.arange(persons) * duration / persons
     root = etree.Element("routes")
+    etree.SubElement(root, "vType", WALKER_TYPE)
     for i, person in enumerate(walkers):
         person.set("id", f"ped{i}")
+        person.set("type", WALKER_TYPE["id"])
         person.set("depart", f"{times[i]:.2f}")
         root.append(person)
     return write_xml(root, out_dir / PERSONS_FILE)
