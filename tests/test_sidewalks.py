@@ -139,6 +139,7 @@ def test_pedestrians_walk_on_them_to_their_end(tmp_path):
     sim = report["simulation"]
     assert (sim["persons_loaded"], sim["persons_arrived"]) == (40, 40)
     assert sim["persons_arrived_ratio"] == 1.0 and sim["persons_jammed"] == 0
+    assert 0 < sim["persons_time_loss_s"] < 600  # waiting at crossings and lights, per walk
     assert code == (0 if report["passed"] else 1)
     people = etree.parse(str(out / "persons.rou.xml")).getroot().findall("person")
     assert [p.get("id") for p in people] == [f"ped{i}" for i in range(40)]

@@ -40,6 +40,9 @@ FIGURES = tuple(t.figure for t in THRESHOLDS) + (
     # SUMO version shows first (``validate.rule_coverage.rule_waits``)
     *(f"simulation.rules.{rule}.waiting_s" for rule in ("signalised", "stop", "all_way_stop",
                                                         "right_before_left", "yield")),
+    # walkers: how many arrived and the time a walk lost at crossings and lights
+    "simulation.persons_arrived",
+    "simulation.persons_time_loss_s",
 )
 # Packages whose versions change the bytes of a scenario: a hash drift on a machine with other
 # versions is then explained rather than a mystery.

@@ -187,7 +187,8 @@ def summary_lines(report: dict) -> list[str]:
             f" {ending} at {sim['sim_end_s']:g} s"
         ),
         *([(f"pedestrians: {sim['persons_arrived']}/{sim['persons_loaded']} arrived, "
-            f"{sim['persons_jammed']} jammed")] if sim.get("persons_loaded") else []),
+            f"{sim['persons_jammed']} jammed, {sim.get('persons_time_loss_s', 0):.1f} s lost "
+            "per walk")] if sim.get("persons_loaded") else []),
         (
             f"trips: mean travel {sim['mean_travel_time_s']:.1f} s,"
             f" waiting {sim['mean_waiting_time_s']:.1f} s; routing success"

@@ -257,7 +257,8 @@ def _read_statistics(path: Path) -> dict:
     """The figures we report from SUMO's ``--statistic-output`` file. SUMO counts bicycles
     apart (``bikeTripStatistics``): they arrive like any vehicle; the trip means are those of
     the motor vehicles. Pedestrians: loaded, arrived (walks completed), jammed (teleported
-    past a blocked sidewalk or crossing)."""
+    past a blocked sidewalk or crossing), and the time a walk lost against walking freely:
+    waiting at crossings and lights, where a changed driver model or light program shows."""
     root = etree.parse(str(path)).getroot()
 
     def number(tag: str, attr: str) -> float:
@@ -279,6 +280,7 @@ def _read_statistics(path: Path) -> dict:
         "persons_loaded": int(number("persons", "loaded")),
         "persons_arrived": int(number("pedestrianStatistics", "number")),
         "persons_jammed": int(number("persons", "jammed")),
+        "persons_time_loss_s": number("pedestrianStatistics", "timeLoss"),
         "emergency_stops": int(number("safety", "emergencyStops")),
         "mean_travel_time_s": number("vehicleTripStatistics", "duration"),
         "mean_waiting_time_s": number("vehicleTripStatistics", "waitingTime"),
