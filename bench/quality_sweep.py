@@ -2,7 +2,7 @@
 
 Usage: python bench/quality_sweep.py [--densities 10,20,30,40,60] [--seeds 0-4] [--styles mixed]
        [--skeleton learned|procedural] [--boundary open|ring] [--rules de|us|priority]
-       [--persons 0]
+       [--persons 100] [--keep DIR]
 Prints one row per scenario and a summary against the issue's thresholds; writes JSON next to it.
 """
 
@@ -17,7 +17,7 @@ from pathlib import Path
 
 from roadweaver_sumo.errors import RoadweaverError
 from roadweaver_sumo.pipeline import make_scenario
-from roadweaver_sumo.spec import ScenarioSpec
+from roadweaver_sumo.spec import DEFAULT_PERSONS, ScenarioSpec
 
 
 def seeds_arg(text: str) -> list[int]:
@@ -37,13 +37,17 @@ def main() -> None:
     ap.add_argument("--boundary", default="open", help="open or ring")
     ap.add_argument("--rules", default="de", help="de, us or priority")
     ap.add_argument("--vehicles", type=int, default=500)
-    ap.add_argument("--persons", type=int, default=0,
+    ap.add_argument("--persons", type=int, default=DEFAULT_PERSONS,
                     help="pedestrians per scenario, on sidewalks (0: no sidewalks)")
     ap.add_argument("--json", type=Path, default=Path("bench/results/quality_sweep.json"))
+    ap.add_argument("--keep", type=Path, default=None,
+                    help="keep each scenario folder under this folder (default: a temporary one)")
     args = ap.parse_args()
     rows: list[dict] = []
     errors: list[dict] = []
     with tempfile.TemporaryDirectory() as tmp:
+        if args.keep is not None:
+            tmp = str(args.keep)
         for style in args.styles.split(","):
             for density in [float(d) for d in args.densities.split(",")]:
                 for seed in seeds_arg(args.seeds):

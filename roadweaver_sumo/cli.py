@@ -37,7 +37,7 @@ from .option_text import (
     parse_speeds,
     parse_vehicle_mix,
 )
-from .spec import PRIOR_RANGES, ScenarioSpec
+from .spec import DEFAULT_PERSONS, PRIOR_RANGES, ScenarioSpec
 from .staging import remove_staged
 
 
@@ -102,7 +102,9 @@ def _rule_and_demand_fields(args) -> dict:
     """The spec fields of the options a scenario and every scenario of a suite share
     (``cli_parser._add_rule_and_demand_options``)."""
     return {"rules": args.rules, "one_way_share": args.one_way_share,
-            "sidewalks": args.sidewalks, "persons": args.persons, "bus_lines": args.bus_lines,
+            "sidewalks": args.sidewalks, "bus_lines": args.bus_lines,
+            "persons": args.persons if args.persons is not None
+            else DEFAULT_PERSONS if args.sidewalks else 0,
             "vehicle_mix": parse_vehicle_mix(args.vehicle_mix), "departures": args.departures,
             "fringe_factor": args.fringe_factor, "roundabouts": args.roundabouts,
             "speeds": parse_speeds(args.speed) if args.speed is not None else {},

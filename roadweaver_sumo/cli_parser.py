@@ -235,12 +235,14 @@ def _add_rule_and_demand_options(parser: argparse.ArgumentParser) -> None:
                         help=RULES_HELP)
     parser.add_argument("--one-way-share", type=_number(float, 0.0, 1.0),
                         default=DEFAULT_ONE_WAY_SHARE, help=ONE_WAY_HELP)
-    parser.add_argument("--sidewalks", action="store_true",
+    parser.add_argument("--sidewalks", action=argparse.BooleanOptionalAction, default=True,
                         help="a 2 m sidewalk beside every driving direction and a pedestrian "
-                             "crossing over every road at junctions of three or more roads")
-    parser.add_argument("--persons", type=_number(int, 0, MAX_VEHICLES), default=DEFAULT_PERSONS,
+                             "crossing over every road at junctions of three or more roads "
+                             "(default: on)")
+    parser.add_argument("--persons", type=_number(int, 0, MAX_VEHICLES), default=None,
                         help="pedestrians walking 100-1000 m (at most 2.5 km on foot) on the "
-                             "sidewalks over --duration; needs --sidewalks")
+                             f"sidewalks over --duration (default: {DEFAULT_PERSONS}, none with "
+                             "--no-sidewalks)")
     parser.add_argument("--bus-lines", type=_number(int, 0, MAX_BUS_LINES),
                         default=DEFAULT_BUS_LINES,
                         help="bus lines across the map along its main roads, both ways, a bus "

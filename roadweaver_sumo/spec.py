@@ -27,7 +27,7 @@ LEGACY_RULES = "priority"  # of a spec or suite written before there was a choic
 #: junction controls a --junction-mix may ask for shares of (SUMO node types, ``hdmap.control``)
 MIX_CONTROLS = ("traffic_light", "priority", "priority_stop", "right_before_left", "allway_stop")
 DEFAULT_ONE_WAY_SHARE = 0.2
-DEFAULT_PERSONS = 0
+DEFAULT_PERSONS = 100  # on a map with sidewalks, unless --persons says otherwise
 DEFAULT_BUS_LINES, MAX_BUS_LINES = 1, 4
 #: SUMO vehicle classes a demand may mix (each gets SUMO's default vType of its class), and
 #: the default mix: shares of the trips (``scenario.demand``)
@@ -95,7 +95,7 @@ class ScenarioSpec:
     one_way_share: float = DEFAULT_ONE_WAY_SHARE
     #: a sidewalk beside every driving direction, crossings at junctions (``hdmap.lanes``,
     #: ``export.sumo_plain.crossings``)
-    sidewalks: bool = False
+    sidewalks: bool = True
     #: speed limits in km/h by road class, where not the class's own (``hdmap.lanes``)
     speeds: dict = field(default_factory=dict)
     #: junction control -> share of the junctions of three or more arms (``hdmap.control``)
@@ -108,8 +108,9 @@ class ScenarioSpec:
     #: vehicle class -> share of the trips; departure times random or evenly spread
     vehicle_mix: dict = field(default_factory=lambda: dict(DEFAULT_VEHICLE_MIX))
     departures: str = "random"
-    #: pedestrians walking over the duration (``scenario.persons``); needs sidewalks
-    persons: int = DEFAULT_PERSONS
+    #: pedestrians walking over the duration (``scenario.persons``); needs sidewalks. None:
+    #: :data:`DEFAULT_PERSONS` on a map with sidewalks, none on one without
+    persons: int | None = None
     #: bus lines across the map with stops (``scenario.bus_lines``)
     bus_lines: int = DEFAULT_BUS_LINES
     #: randomTrips' --fringe-factor: how much likelier trips start and end where roads leave
@@ -161,12 +162,14 @@ class ScenarioSpec:
             raise RoadweaverError(f"--one-way-share must be 0..1, got {self.one_way_share:g}")
         if not isinstance(self.sidewalks, bool):
             raise RoadweaverError(f"sidewalks must be true or false, got {self.sidewalks!r}")
+        if self.persons is None:
+            object.__setattr__(self, "persons", DEFAULT_PERSONS if self.sidewalks else 0)
         if isinstance(self.persons, bool) or not isinstance(self.persons, int) or not (
                 0 <= self.persons <= MAX_VEHICLES):
             raise RoadweaverError(f"--persons must be a whole number 0..{MAX_VEHICLES}, got "
                                   f"{self.persons!r}")
         if self.persons and not self.sidewalks:
-            raise RoadweaverError("--persons needs sidewalks to walk on: add --sidewalks")
+            raise RoadweaverError("--persons needs sidewalks to walk on: leave out --no-sidewalks")
         if isinstance(self.bus_lines, bool) or not isinstance(self.bus_lines, int) or not (
                 0 <= self.bus_lines <= MAX_BUS_LINES):
             raise RoadweaverError(f"--bus-lines must be a whole number 0..{MAX_BUS_LINES}, got "

@@ -10,6 +10,7 @@ import pytest
 from lxml import etree
 
 from roadweaver_sumo.cli import main
+from roadweaver_sumo.spec import DEFAULT_PERSONS
 from roadweaver_sumo.sumo_tools import binary, strip_generated_comment
 
 ARGS = ["make-scenario", "--density", "30", "--vehicles", "60", "--size", "800",
@@ -17,7 +18,7 @@ ARGS = ["make-scenario", "--density", "30", "--vehicles", "60", "--size", "800",
 EXPECTED_FILES = {
     "scenario.sumocfg", "map.net.xml", "demand.rou.xml", "spec.json", "report.json",
     "netconvert.netccfg", "timing.json", "plain", "map.xodr", "lanelet2_map.osm", "preview.png",
-    "bus_lines.rou.xml", "bus_stops.add.xml",
+    "bus_lines.rou.xml", "bus_stops.add.xml", "persons.rou.xml",
 }
 
 
@@ -42,6 +43,8 @@ def test_scenario_folder_is_complete_and_passes(scenario):
     buses = 2 * report["generation"]["bus_lines"]["lines"]  # one from each end within 300 s
     assert sim["loaded"] == 60 + buses and sim["arrived"] >= 59 + buses
     assert sim["collisions"] == 0
+    assert sim["persons_loaded"] == DEFAULT_PERSONS and sim["persons_arrived"] == DEFAULT_PERSONS
+    assert report["net"]["rules"]["pedestrian_crossings"]
     assert report["generation"]["hdmap"]["strongly_connected"]
 
 

@@ -17,6 +17,7 @@ from roadweaver_sumo.export.map_files import write_map_files
 from roadweaver_sumo.export.sumo_plain import SIDEWALK_CORNER_RADIUS
 from roadweaver_sumo.hdmap import build_hdmap, hdmap_metrics
 from roadweaver_sumo.hdmap.lanes import LANE_CONFIGS, SIDEWALK_WIDTH
+from roadweaver_sumo.spec import DEFAULT_PERSONS, ScenarioSpec
 from roadweaver_sumo.validate.lanelet2_check import check_lanelet2, lanelet2_failures
 from roadweaver_sumo.validate.netgraph import load_net
 
@@ -152,7 +153,7 @@ def test_pedestrians_walk_on_them_to_their_end(tmp_path):
 
 def test_persons_without_sidewalks_is_a_one_line_error(tmp_path, capsys):
     assert main(["make-scenario", "--density", "30", "--vehicles", "10", "--persons", "5",
-                 "--out", str(tmp_path / "x")]) == 2
+                 "--no-sidewalks", "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--persons needs sidewalks" in err[0]
 
@@ -194,3 +195,23 @@ def test_a_walking_area_lanelet_whose_bounds_would_cross_goes_round_by_a_middle_
     ml, mr = (ids.xy(n) for n in _middle_edge(ids, (first, first + 1), (first + 2, first + 3)))
     assert Polygon([la, ml, mr, ra]).is_valid and Polygon([ml, lb, rb, mr]).is_valid
     assert _aligned_points(la, ra, ml, mr) and _aligned_points(ml, mr, lb, rb)
+
+
+def test_sidewalks_and_walkers_are_the_default_and_can_be_left_out(tmp_path):
+    """Issue 36: the default scenario has sidewalks, crossings and DEFAULT_PERSONS walkers;
+    --no-sidewalks leaves out both, and --persons 0 keeps sidewalks without walkers."""
+    assert (ScenarioSpec(density=30, vehicles=10).sidewalks,
+            ScenarioSpec(density=30, vehicles=10).persons) == (True, DEFAULT_PERSONS)
+    assert ScenarioSpec(density=30, vehicles=10, sidewalks=False).persons == 0
+    base = ["make-scenario", "--density", "30", "--vehicles", "10", "--size", "800",
+            "--no-validate"]
+    for extra, expected in (([], (True, DEFAULT_PERSONS)), (["--no-sidewalks"], (False, 0)),
+                            (["--persons", "0"], (True, 0))):
+        out = tmp_path / "-".join(extra or ["default"])
+        assert main([*base, *extra, "--out", str(out)]) == 0
+        spec = ScenarioSpec.from_json_file(out / "spec.json")
+        assert (spec.sidewalks, spec.persons) == expected
+        assert (out / "persons.rou.xml").exists() == bool(expected[1])
+    walks = etree.parse(str(tmp_path / "default" / "persons.rou.xml")).getroot()
+    assert {p.get("type") for p in walks.iter("person")} == {
+        t.get("id") for t in walks.iter("vType") if t.get("vClass") == "pedestrian"}

@@ -67,4 +67,4 @@ def test_a_map_built_twice_by_netconvert_leaves_only_its_scenario_files(tmp_path
     assert len(calls) == 2
     assert sorted(p.name for p in out.iterdir()) == [
         "bus_lines.rou.xml", "bus_stops.add.xml", "demand.rou.xml", "lanelet2_map.osm", "map.net.xml", "map.xodr", "netconvert.netccfg",
-        "plain", "scenario.sumocfg", "spec.json", "tls_offsets.add.xml"]
+        "persons.rou.xml", "plain", "scenario.sumocfg", "spec.json", "tls_offsets.add.xml"]
