@@ -164,16 +164,16 @@ def test_a_walking_area_turn_between_ends_that_cross_each_other_loads_as_written
     middle edge at the middle of the two is too (lanelet2 turns a bound of one half round, and
     the sidewalk is cut off for pedestrian routing). The middle edge goes aside until both
     halves pass lanelet2's own orientation test."""
-    from roadweaver_sumo.export.lanelet2 import _Ids
-    from roadweaver_sumo.export.lanelet2_walks import _aligned_points, _middle_edge
+    from roadweaver_sumo.export.lanelet2_walks import _aligned_points, _middle_edges
 
-    ids = _Ids()
-    first = ids.nodes([(543.49, 625.67), (545.49, 625.86), (545.06, 628.11), (543.78, 626.57)])
-    start, end = (first, first + 1), (first + 2, first + 3)
-    left, right, left_end, right_end = (ids.xy(n) for n in (*start, *end))
+    left, right, left_end, right_end = np.array(X_CORNER)
     assert not _aligned_points(left, right, left_end, right_end)
-    middle = [ids.xy(n) for n in _middle_edge(ids, start, end)]
+    [middle] = _middle_edges(*np.array(X_CORNER)[:, None])
     assert _aligned_points(left, right, *middle) and _aligned_points(*middle, left_end, right_end)
+
+
+X_CORNER = [(543.49, 625.67), (545.49, 625.86), (545.06, 628.11), (543.78, 626.57)]
+WIDE_CORNER = [(1171.79, 1050.75), (1172.10, 1052.72), (1168.47, 1053.29), (1168.43, 1051.29)]
 
 
 def test_a_walking_area_lanelet_whose_bounds_would_cross_goes_round_by_a_middle_edge():
@@ -183,18 +183,28 @@ def test_a_walking_area_lanelet_whose_bounds_would_cross_goes_round_by_a_middle_
     at a middle edge whose two halves are simple four-sided lanelets."""
     from shapely.geometry import Polygon
 
-    from roadweaver_sumo.export.lanelet2 import _Ids
-    from roadweaver_sumo.export.lanelet2_walks import _aligned_points, _middle_edge
+    from roadweaver_sumo.export.lanelet2_walks import _aligned_points, _middle_edges
 
-    ids = _Ids()
-    first = ids.nodes([(1171.79, 1050.75), (1172.10, 1052.72), (1168.47, 1053.29),
-                       (1168.43, 1051.29)])
-    la, ra, lb, rb = (ids.xy(first + k) for k in range(4))
+    la, ra, lb, rb = np.array(WIDE_CORNER)
     assert not Polygon([la, lb, rb, ra]).is_valid, "the straight lanelet is a bow-tie"
     assert not _aligned_points(la, ra, lb, rb)
-    ml, mr = (ids.xy(n) for n in _middle_edge(ids, (first, first + 1), (first + 2, first + 3)))
+    [(ml, mr)] = _middle_edges(*np.array(WIDE_CORNER)[:, None])
     assert Polygon([la, ml, mr, ra]).is_valid and Polygon([ml, lb, rb, mr]).is_valid
     assert _aligned_points(la, ra, ml, mr) and _aligned_points(ml, mr, lb, rb)
+
+
+def test_middle_edges_of_many_lanelets_are_each_ones_own():
+    """The middle edges are searched for many lanelets at once: each lanelet gets the one it
+    gets alone, and a lanelet lanelet2 reads as written gets none."""
+    from roadweaver_sumo.export.lanelet2_walks import _middle_edges
+
+    straight = [(0.0, 0.0), (0.0, -2.0), (10.0, 0.0), (10.0, -2.0)]
+    lanelets = np.array([WIDE_CORNER, straight, X_CORNER]).transpose(1, 0, 2)
+    together = _middle_edges(*lanelets)
+    assert together[1] is None
+    for k in (0, 2):
+        [alone] = _middle_edges(*lanelets[:, k:k + 1])
+        assert np.array_equal(together[k], alone)
 
 
 def test_sidewalks_and_walkers_are_the_default_and_can_be_left_out(tmp_path):

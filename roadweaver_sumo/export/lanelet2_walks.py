@@ -26,6 +26,7 @@ MIDDLE_HALF_WIDTH = 1.0  # m: the middle edge of a lanelet pair across a sharp t
 TURNS = 16  # directions tried for that edge
 MIDDLE_REACH = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0)  # m: how far from the middle it may be moved
 MIN_BOUND_M = 0.05
+CHUNK = 512  # lanelets whose middle edges are searched together
 
 
 @dataclass
@@ -77,49 +78,68 @@ def walk_elements(hd: HDMap, ids) -> tuple[dict[int, tuple], list[WalkLanelet]]:
             wids.append(wid)
         lanelets.append(WalkLanelet(ids.new(), "walkway", *wids, source))
 
+    pairs = []  # every two ends a walking area joins: (source, start, end)
     for area, ports in hd.walking_areas.items():
         known = [(kind, source, end) for kind, source, end in ports if (source, end) in ends]
         for k, (first, second) in enumerate(combinations(known, 2)):
-            start, end = _leaving(ends, first), _entering(ends, second)
-            if _aligned(ids, start, end):
-                connector(f"{area}_{k}", start, end)
-                continue
-            middle = _middle_edge(ids, start, end)  # a turn too sharp for one lanelet
-            connector(f"{area}_{k}a", start, middle)
-            connector(f"{area}_{k}b", middle, end)
+            pairs.append((f"{area}_{k}", _leaving(ends, first), _entering(ends, second)))
+    points = np.array([[ids.xy(n) for n in (*start, *end)] for _, start, end in pairs])
+    middles = _middle_edges(*points.reshape(-1, 4, 2).transpose(1, 0, 2))
+    for (source, start, end), middle in zip(pairs, middles):
+        if middle is None:
+            connector(source, start, end)
+            continue
+        middle = (ids.node(middle[0]), ids.node(middle[1]))  # a turn too sharp for one lanelet
+        connector(f"{source}a", start, middle)
+        connector(f"{source}b", middle, end)
     return ways, lanelets
 
 
-def _aligned(ids, start: tuple[int, int], end: tuple[int, int]) -> bool:
-    """Whether lanelet2 reads a lanelet from edge ``start`` to edge ``end`` (node pairs
-    (left, right)) as written: its loader turns a bound round where the bounds' ends lie
-    closer crosswise than pairwise, and a lanelet so turned follows nothing."""
-    return bool(_aligned_points(*map(ids.xy, start), *map(ids.xy, end)))
+def _middle_edges(la, ra, lb, rb) -> list:
+    """For lanelets from edges (la, ra) to edges (lb, rb) (arrays of shape (n, 2)): None
+    where lanelet2 reads the lanelet as written (its loader turns a bound round where the
+    bounds' ends lie closer crosswise than pairwise, and a lanelet so turned follows
+    nothing), else the (left, right) points of a middle edge ``MIDDLE_HALF_WIDTH`` either side
+    of a point near the middle of the two edges, turned so that lanelet2 reads both halves as
+    written: the first turn that does at the middle, else at points ``MIDDLE_REACH`` m from it,
+    the nearest first (two edges that cross each other, at a tight corner, need the middle
+    edge off to one side, and the ends of a wide corner's sidewalks one far enough out that no
+    half's bounds cross); else across the way from the one edge's centre to the other's."""
+    middles: list = [None] * len(la)
+    bent = np.flatnonzero(~_aligned_points(la, ra, lb, rb))
+    for start in range(0, len(bent), CHUNK):  # arrays small enough for the CPU's caches
+        part = bent[start:start + CHUNK]
+        for k, middle in zip(part, _middle_edges_of(la[part], ra[part], lb[part], rb[part])):
+            middles[k] = middle
+    return middles
 
 
-def _middle_edge(ids, start: tuple[int, int], end: tuple[int, int]) -> tuple[int, int]:
-    """New (left, right) nodes ``MIDDLE_HALF_WIDTH`` either side of a point near the middle of
-    the two edges, turned so that lanelet2 reads both halves as written: the first turn that
-    does at the middle, else at points up to ``MIDDLE_REACH`` m from it (two edges that cross
-    each other, at a tight corner, need the middle edge off to one side, and the ends of a wide
-    corner's sidewalks one far enough out that no half's bounds cross); else across the way
-    from the one edge's centre to the other's. Every place and turn is tested at once."""
-    la, ra, lb, rb = (ids.xy(n) for n in (*start, *end))
+def _middle_edges_of(la, ra, lb, rb) -> list:
+    """The middle edges of lanelets that need one (``_middle_edges``): each reach is tested
+    for all lanelets still without a middle edge at once."""
     centre = (la + ra + lb + rb) / 4
     ahead = (lb + rb) / 2 - (la + ra) / 2
-    best = np.arctan2(ahead[1], ahead[0]) + np.pi / 2  # left of the way ahead
-    turns = best + np.arange(TURNS) * 2 * np.pi / TURNS
-    unit = np.stack([np.cos(turns), np.sin(turns)], axis=1)
-    places = np.concatenate([[centre], (centre + np.multiply.outer(
-        np.array(MIDDLE_REACH), unit)).reshape(-1, 2)])
-    across = MIDDLE_HALF_WIDTH * unit
-    left, right = places[:, None] + across, places[:, None] - across  # (place, turn, xy)
-    fits = (_aligned_points(la, ra, left, right) & _aligned_points(left, right, lb, rb)).ravel()
-    if fits.any():
-        first = np.unravel_index(np.argmax(fits), left.shape[:2])
-        return (ids.node(left[first]), ids.node(right[first]))
-    across = MIDDLE_HALF_WIDTH * np.array([np.cos(best), np.sin(best)])
-    return (ids.node(centre + across), ids.node(centre - across))
+    best = np.arctan2(ahead[:, 1], ahead[:, 0]) + np.pi / 2  # left of the way ahead
+    turns = best[:, None] + np.arange(TURNS) * 2 * np.pi / TURNS
+    unit = np.stack([np.cos(turns), np.sin(turns)], axis=-1)  # (lanelet, turn, xy)
+    across = MIDDLE_HALF_WIDTH * unit[:, None]  # (lanelet, 1, turn, xy)
+    square = MIDDLE_HALF_WIDTH * np.stack([np.cos(best), np.sin(best)], axis=-1)
+    middles = [(c + s, c - s) for c, s in zip(centre, square)]  # where no turn does
+    todo = np.arange(len(la))  # lanelets still without a middle edge
+    for reach in (None, *MIDDLE_REACH):
+        if not len(todo):
+            break
+        places = centre[todo, None] if reach is None else centre[todo, None] + reach * unit[todo]
+        left, right = places[:, :, None] + across[todo], places[:, :, None] - across[todo]
+        a, b, c, d = (e[todo, None, None] for e in (la, ra, lb, rb))
+        fits = (_aligned_points(a, b, left, right)
+                & _aligned_points(left, right, c, d)).reshape(len(todo), -1)
+        first, found = fits.argmax(axis=1), fits.any(axis=1)
+        left, right = left.reshape(len(todo), -1, 2), right.reshape(len(todo), -1, 2)
+        for i in np.flatnonzero(found):
+            middles[todo[i]] = (left[i, first[i]], right[i, first[i]])
+        todo = todo[~found]
+    return middles
 
 
 def _aligned_points(la, ra, lb, rb):
