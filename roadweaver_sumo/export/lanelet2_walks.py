@@ -136,8 +136,8 @@ def _middle_edges_of(la, ra, lb, rb) -> list:
                 & _aligned_points(left, right, c, d)).reshape(len(todo), -1)
         first, found = fits.argmax(axis=1), fits.any(axis=1)
         left, right = left.reshape(len(todo), -1, 2), right.reshape(len(todo), -1, 2)
-        for i in np.flatnonzero(found):
-            middles[todo[i]] = (left[i, first[i]], right[i, first[i]])
+        for i in np.flatnonzero(found):  # copies: a view would keep the whole array alive
+            middles[todo[i]] = (left[i, first[i]].copy(), right[i, first[i]].copy())
         todo = todo[~found]
     return middles
 
