@@ -46,8 +46,7 @@ def main() -> None:
     rows: list[dict] = []
     errors: list[dict] = []
     with tempfile.TemporaryDirectory() as tmp:
-        if args.keep is not None:
-            tmp = str(args.keep)
+        folder = Path(tmp) if args.keep is None else args.keep
         for style in args.styles.split(","):
             for density in [float(d) for d in args.densities.split(",")]:
                 for seed in seeds_arg(args.seeds):
@@ -58,7 +57,7 @@ def main() -> None:
                                         persons=args.persons)
                     start = time.perf_counter()
                     try:
-                        res = make_scenario(spec, Path(tmp) / spec.name)
+                        res = make_scenario(spec, folder / spec.name)
                     except RoadweaverError as exc:  # an error is a result of the sweep too
                         errors.append({"spec": spec.name, "error": str(exc)})
                         print(f"{spec.name}: ERROR {exc}", flush=True)

@@ -108,8 +108,7 @@ def _bay_length(leaving: np.ndarray, classes: list[str], lanes: list[int],
     stays within ``MAX_TRIM_SHARE`` of them."""
     lane_widths = np.array([LANE_CONFIGS[c].width for c in classes])
     widths = lane_widths * (np.array(lanes) + np.array(bayed))
-    radius = junction_radii(leaving, widths, lane_widths,
-                            [len(classes)])[0]
+    radius = junction_radii(leaving, widths, lane_widths, [len(classes)])[0]
     return max(BAY_LENGTH, GROWTH_ROOM * radius / MAX_TRIM_SHARE)
 
 
