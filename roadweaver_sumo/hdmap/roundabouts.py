@@ -95,7 +95,7 @@ def _port(G: nx.Graph, node: int, arm: tuple[int, int]):
     coords = data["coords"] if data["start"] == node else data["coords"][::-1]
     line = shapely.LineString(coords)
     circle = shapely.Point(coords[0]).buffer(RING_RADIUS, quad_segs=64).exterior
-    meets = shapely.get_parts(line.intersection(circle))
+    meets = [part for part in shapely.get_parts(line.intersection(circle)) if not part.is_empty]
     if len(meets) != 1 or line.length - line.project(meets[0]) < MIN_ARM_LEFT:
         return None
     beyond = dedupe(np.asarray(substring(line, line.project(meets[0]), line.length).coords))
