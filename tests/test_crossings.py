@@ -39,6 +39,20 @@ def test_a_dead_end_inside_another_roads_lanes_is_found():
     assert roads_too_close(G) != []
 
 
+@pytest.mark.parametrize("angle, length, close", [(33, 20, True), (33, 60, False),
+                                                   (90, 20, False), (90, 8, True)])
+def test_a_dead_end_on_the_lanes_of_a_road_at_its_own_junction_is_found(angle, length, close):
+    """A road cut off by the map edge ``length`` m from the junction where it leaves an
+    arterial at ``angle`` degrees: within that junction's area, yet a dead end no junction
+    shape covers (learned grid density 20 seed 8: 20 m at 33 degrees, SUMO's net had the two
+    roads' lanes on top of each other)."""
+    a = np.radians(angle)
+    G = _graph(([(300, 500), (500, 500), (900, 500)], "arterial"),
+               ([(500, 500), (500, 100)], "local"),
+               ([(500, 500), (500 + length * np.cos(a), 500 + length * np.sin(a))], "arterial"))
+    assert bool(roads_too_close(G)) is close
+
+
 def test_roads_meeting_at_a_junction_are_not_too_close():
     G = _graph(([(100, 500), (900, 500)], "arterial"), ([(500, 500), (500, 900)], "arterial"),
                ([(500, 500), (800, 700)], "collector"))  # 34° from the first arm
