@@ -17,7 +17,14 @@ from roadweaver_sumo.hdmap.lanes import (
     plan_reference_lines,
 )
 from roadweaver_sumo.hdmap.model import Road
-from roadweaver_sumo.hdmap.reference import END_LINE, MAX_DEVIATION, fillet_plans, plan_points
+from roadweaver_sumo.hdmap.reference import (
+    ARC_STEP,
+    END_LINE,
+    MAX_DEVIATION,
+    Piece,
+    fillet_plans,
+    plan_points,
+)
 
 
 def _end_pose(piece) -> tuple[float, float, float]:
@@ -137,3 +144,15 @@ def test_a_short_road_bending_next_to_its_junction_leaves_the_bend_to_the_juncti
     assert min(radii, default=math.inf) >= cfg.min_radius - 1e-9
     assert section.s_start > MAX_TRIM_SHARE * length
     assert section.s_end - section.s_start >= MIN_SECTION_SHARE * length - 1e-9
+
+
+@pytest.mark.parametrize("noise", [-1e-13, 0.0, 1e-13])
+def test_a_half_circle_gets_the_same_samples_whatever_its_last_bits(noise):
+    """A dead end's U-turn turns exactly 36 steps of 5 degrees; another CPU's rounding puts
+    its turn a last bit either side of that, and its lanelet2 bounds must not gain a point."""
+    radius = 3.5
+    start, end = np.array([0.0, 0.0]), np.array([0.0, 2 * radius])
+    arc = Piece("arc", 0.0, 0.0, 0.0, 0.0, math.pi * radius * (1 + noise), curvature=1 / radius)
+    points, _ = plan_points([arc], start, end)
+    assert round(math.pi / ARC_STEP) == 36
+    assert len(points) == 37

@@ -30,6 +30,10 @@ MAX_DEVIATION = 0.2
 EASE_TOLERANCE = 1.0
 
 ARC_STEP = math.radians(5.0)  # an arc is sampled every 5 degrees: 3 cm from it at 8 m radius
+#: steps of ARC_STEP an arc may exceed a whole number by and still take that number: a dead
+#: end's U-turn is a half circle, 36 steps exactly, which rounding on one CPU put a last bit
+#: above 36 and on another not (lanelet2 files with 38 or 37 points per U-turn)
+STEP_SLACK = 1e-9
 
 
 class Piece(NamedTuple):
@@ -260,7 +264,8 @@ def plan_points(pieces: list[Piece], start: np.ndarray,
     points, headings = [np.asarray(start, dtype=float)[None]], [pieces[0].hdg]
     for piece in pieces:
         if piece.kind == "arc":
-            steps = max(1, math.ceil(abs(piece.curvature) * piece.length / ARC_STEP))
+            turn = abs(piece.curvature) * piece.length / ARC_STEP
+            steps = max(1, math.ceil(turn - STEP_SLACK))
             k = piece.curvature
             heading = piece.hdg + k * piece.length * np.arange(1, steps + 1) / steps
             points.append(np.column_stack([piece.x + (np.sin(heading) - math.sin(piece.hdg)) / k,
