@@ -593,3 +593,23 @@ def test_no_shallow_left_at_a_fork_where_there_is_another_way():
     moves = {(hd.lanes[c.predecessors[0]].road, hd.lanes[c.successors[0]].road): c.movement
              for c in hd.connectors() if c.junction == 0}
     assert moves[(stem, left)] == "left"
+
+
+def test_turn_lanes_without_a_way_straight_on_go_where_there_is_room_for_them():
+    """Three lanes arrive where the road ends at a T (no way straight on): a one-lane road to
+    the right, a two-lane road and a one-lane road to the left. Two lanes turn left, each
+    into its own lane of the two-lane road, and only the leftmost into the one-lane road:
+    both into one lane would merge inside the junction, where two cars turning side by side
+    touch (a SUMO junction collision at a learned map's traffic light)."""
+    from roadweaver_sumo.hdmap.movements import Approach, lane_plan
+
+    def approach(road, lanes):
+        return Approach(road, lanes, np.array([1.0, 0.0]))
+
+    arrival = approach(0, ["a0", "a1", "a2"])
+    moves = [(approach(1, ["r0"]), "right"), (approach(2, ["w0", "w1"]), "left"),
+             (approach(3, ["n0"]), "left")]
+    plan = lane_plan(arrival, moves)
+    assert sorted((a, b) for a, b, _ in plan) == [
+        ("a0", "r0"), ("a1", "w0"), ("a2", "n0"), ("a2", "w1")]
+    assert max(Counter(b for _, b, _ in plan).values()) == 1
