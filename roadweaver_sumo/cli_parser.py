@@ -243,10 +243,10 @@ def _add_rule_and_demand_options(parser: argparse.ArgumentParser) -> None:
                         help="pedestrians walking 100-1000 m (at most 2.5 km on foot) on the "
                              f"sidewalks over --duration (default: {DEFAULT_PERSONS}, none with "
                              "--no-sidewalks)")
-    parser.add_argument("--bus-lines", type=_number(int, 0, MAX_BUS_LINES),
-                        default=DEFAULT_BUS_LINES,
-                        help="bus lines across the map along its main roads, both ways, a bus "
-                             "every 10 minutes, stops every 400 m")
+    parser.add_argument("--bus-lines", type=_number(int, 0, MAX_BUS_LINES), default=None,
+                        help=f"bus lines across the map along its main roads, both ways, a bus "
+                             f"every 10 minutes, stops every 400 m, 0..{MAX_BUS_LINES} (default: "
+                             f"{DEFAULT_BUS_LINES} where the main roads have room for it)")
     parser.add_argument("--vehicle-mix", default=DEFAULT_MIX_TEXT, help=MIX_HELP)
     parser.add_argument("--departures", default="random", metavar=_choices(DEPARTURES),
                         help=DEPARTURES_HELP)

@@ -20,7 +20,7 @@ from functools import partial
 from pathlib import Path
 
 from .gc_pause import cyclic_gc_paused
-from .spec import ScenarioSpec
+from .spec import DEFAULT_BUS_LINES, ScenarioSpec
 from .staging import staged_folder
 
 SPEC_FILE = "spec.json"
@@ -148,15 +148,17 @@ def build_scenario_files(spec: ScenarioSpec, folder: Path, stages: dict, log) ->
 
             write_persons(folder, persons=spec.persons, duration=spec.duration, seed=spec.seed,
                           departures=spec.departures)
-        if spec.bus_lines:
+        if spec.bus_lines is None or spec.bus_lines:
             from .scenario.bus_lines import write_bus_lines
 
-            generation["bus_lines"] = write_bus_lines(folder, spec.bus_lines, spec.duration)
+            asked = spec.bus_lines is not None
+            generation["bus_lines"] = write_bus_lines(
+                folder, spec.bus_lines if asked else DEFAULT_BUS_LINES, spec.duration, asked=asked)
         from .scenario.signal_plans import coordinate_lights
 
         generation["traffic_lights"] = coordinate_lights(folder)
         write_sumocfg(folder, duration=spec.duration, seed=spec.seed, persons=spec.persons > 0,
-                      buses=spec.bus_lines > 0,
+                      buses=generation.get("bus_lines", {}).get("lines", 0) > 0,
                       coordinated=generation["traffic_lights"]["coordinated"] > 0)
     if spec.ego_routes:
         with stage(f"{spec.ego_routes} ego routes of {spec.ego_length:g} m ...", "ego_routes"):

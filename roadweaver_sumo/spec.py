@@ -111,8 +111,9 @@ class ScenarioSpec:
     #: pedestrians walking over the duration (``scenario.persons``); needs sidewalks. None:
     #: :data:`DEFAULT_PERSONS` on a map with sidewalks, none on one without
     persons: int | None = None
-    #: bus lines across the map with stops (``scenario.bus_lines``)
-    bus_lines: int = DEFAULT_BUS_LINES
+    #: bus lines across the map with stops (``scenario.bus_lines``). None:
+    #: :data:`DEFAULT_BUS_LINES` where the map's main roads have room for it, none where not
+    bus_lines: int | None = None
     #: randomTrips' --fringe-factor: how much likelier trips start and end where roads leave
     #: the map (1: as likely as anywhere else of the same length)
     fringe_factor: float = 1.0
@@ -170,8 +171,9 @@ class ScenarioSpec:
                                   f"{self.persons!r}")
         if self.persons and not self.sidewalks:
             raise RoadweaverError("--persons needs sidewalks to walk on: leave out --no-sidewalks")
-        if isinstance(self.bus_lines, bool) or not isinstance(self.bus_lines, int) or not (
-                0 <= self.bus_lines <= MAX_BUS_LINES):
+        if self.bus_lines is not None and (
+                isinstance(self.bus_lines, bool) or not isinstance(self.bus_lines, int)
+                or not 0 <= self.bus_lines <= MAX_BUS_LINES):
             raise RoadweaverError(f"--bus-lines must be a whole number 0..{MAX_BUS_LINES}, got "
                                   f"{self.bus_lines!r}")
         _check_vehicle_mix(self.vehicle_mix)

@@ -66,3 +66,27 @@ def test_bus_lines_out_of_range_and_too_many_for_the_map_are_one_line_errors(tmp
     lines = [ln for ln in capsys.readouterr().err.splitlines() if not ln.startswith("  ")]
     assert len(lines) == 2 and "--bus-lines" in lines[0] and "--bus-lines 4" in lines[1]
     assert not (tmp_path / "b").exists(), "a failed run leaves no folder"
+
+
+def test_the_default_line_is_left_out_where_the_map_has_no_room_for_it(tmp_path):
+    """Asked for, a line the main roads have no room for is an error; by default the map
+    goes without (a one-way triangle: no two-way main road for a line to run both ways)."""
+    import subprocess
+
+    from roadweaver_sumo.errors import RoadweaverError
+    from roadweaver_sumo.scenario.bus_lines import write_bus_lines
+    from roadweaver_sumo.sumo_tools import binary
+
+    (tmp_path / "n.nod.xml").write_text(
+        '<nodes><node id="a" x="0" y="0"/><node id="b" x="600" y="0"/>'
+        '<node id="c" x="300" y="500"/></nodes>')
+    (tmp_path / "e.edg.xml").write_text(
+        '<edges><edge id="ab" from="a" to="b"/><edge id="bc" from="b" to="c"/>'
+        '<edge id="ca" from="c" to="a"/></edges>')
+    subprocess.run([binary("netconvert"), "-n", "n.nod.xml", "-e", "e.edg.xml", "-o",
+                    "map.net.xml"], cwd=tmp_path, check=True, capture_output=True)
+    with pytest.raises(RoadweaverError, match="--bus-lines 1: the map has main roads for only 0"):
+        write_bus_lines(tmp_path, 1, 600.0)
+    assert write_bus_lines(tmp_path, 1, 600.0, asked=False) == {
+        "lines": 0, "stops": 0, "route_length_m": 0.0}
+    assert not (tmp_path / "bus_lines.rou.xml").exists()

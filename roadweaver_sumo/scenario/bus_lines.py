@@ -39,10 +39,12 @@ BUS = "bus"
 
 
 def write_bus_lines(folder: Path, lines: int, duration: float,
-                    net_file: str = "map.net.xml") -> dict:
+                    net_file: str = "map.net.xml", asked: bool = True) -> dict:
     """Write ``lines`` bus lines for the net in ``folder``; return what they hold (lines,
-    stops, route length) for the report. A one-line error when the map has no two main
-    road ends a bus can drive between."""
+    stops, route length) for the report. Where the map's main roads have room for fewer
+    lines, a one-line error if the user ``asked`` for them; else (the default line) the
+    lines there is room for, none and no files on a map too small for one (an 800 m map
+    may have no two main road ends 500 m apart)."""
     folder = Path(folder)
     net = sumolib.net.readNet(str(folder / net_file))
     graph = _bus_graph(net)
@@ -52,6 +54,9 @@ def write_bus_lines(folder: Path, lines: int, duration: float,
     length = 0.0
     for line in range(lines):
         there = _line_route(net, graph, used)
+        if there is None and not asked:
+            lines = line
+            break
         if there is None:
             raise RoadweaverError(f"--bus-lines {lines}: the map has main roads for only {line} "
                                   "line(s); ask for fewer")
@@ -67,6 +72,8 @@ def write_bus_lines(folder: Path, lines: int, duration: float,
                 etree.SubElement(route, "stop", busStop=stop_id, duration=f"{DWELL_S:g}")
             length += sum(e.getLength() for e in edges)
         used += [_middle(there[0]), _middle(there[-1])]
+    if not lines:
+        return {"lines": 0, "stops": 0, "route_length_m": 0.0}
     for route in routes.findall("route"):
         etree.SubElement(routes, "flow", id=route.get("id"), type=BUS, route=route.get("id"),
                          begin="0", end=f"{duration:g}", period=f"{HEADWAY_S:g}")
