@@ -94,14 +94,15 @@ def _dead_end_on_lanes(G: nx.Graph, edges: list[tuple], i: np.ndarray, j: np.nda
     :func:`_outside_junctions`: a road cut off by the map edge 20 m from the junction where it
     leaves a three-lane arterial at 33 degrees ran on the arterial's lanes all its length
     (learned grid, density 20, seed 8: SUMO's junction there could not cover it)."""
-    ends = np.array([[G.degree(n) == 1 for n in edge] for edge in edges], dtype=bool)
-    xy = np.array([[G.nodes[n]["xy"] for n in edge] for edge in edges], dtype=float)
     touch = half[i] + half[j] + MARGIN
     hit = np.zeros(len(i), dtype=bool)
     for a, b in ((i, j), (j, i)):
         for side in range(2):
-            dead = ends[a, side]
-            hit[dead] |= shapely.distance(shapely.points(xy[a[dead], side]), lines[b[dead]]) < touch[dead]
+            ends = [edges[k][side] for k in a.tolist()]
+            dead = np.array([G.degree(n) == 1 for n in ends], dtype=bool)
+            if dead.any():
+                points = shapely.points([G.nodes[n]["xy"] for n, d in zip(ends, dead) if d])
+                hit[dead] |= shapely.distance(points, lines[b[dead]]) < touch[dead]
     return hit
 
 
