@@ -950,3 +950,18 @@ def test_a_learned_radial_map_has_spokes_and_rings():
         assert abs(road_node_count(G) - spec.target_road_nodes) <= 0.05 * spec.target_road_nodes
     assert found["radial"] > 0.4
     assert found["mixed"] < 0.25
+
+
+def test_a_town_without_roads_opens_to_an_empty_map_of_the_map_size():
+    """A tiny procedural town (710 m grid, density 8.7, seed 7424) can be left with no road
+    in a density round; cutting the map out of it gave a shapely error on no points (a
+    traceback from make-scenario, found by bench/robustness.py) instead of an empty,
+    map-sized round that the density control passes over."""
+    from roadweaver_sumo.expand.boundary import opened
+    from roadweaver_sumo.roadgraph import new_road_graph
+    from roadweaver_sumo.spec import TOWN_MARGIN
+
+    side = 710.0
+    H = opened(new_road_graph(side + 2 * TOWN_MARGIN, side + 2 * TOWN_MARGIN))
+    assert H.number_of_nodes() == 0
+    assert (H.graph["width"], H.graph["height"]) == (side, side)

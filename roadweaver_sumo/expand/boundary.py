@@ -52,8 +52,9 @@ def open_boundary(G: nx.Graph) -> None:
                 cut_ends += _reattach(G, u, v, np.asarray(part.coords), data["road_class"],
                                       new_ids)
     _drop_crowded_ends(G, cut_ends)
-    nodes = list(G)
-    out = ~shapely.covers(inside, shapely.points([G.nodes[n]["xy"] for n in nodes]))
+    nodes = list(G)  # none where a tiny town's roads all lay outside the map
+    xy = np.array([G.nodes[n]["xy"] for n in nodes], dtype=float).reshape(-1, 2)
+    out = ~shapely.covers(inside, shapely.points(xy))
     ends = set(cut_ends)
     G.remove_nodes_from([n for n, o in zip(nodes, out.tolist(), strict=True)
                          if o and n not in ends])
