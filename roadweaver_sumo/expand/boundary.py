@@ -52,7 +52,7 @@ def open_boundary(G: nx.Graph) -> None:
                 cut_ends += _reattach(G, u, v, np.asarray(part.coords), data["road_class"],
                                       new_ids)
     _drop_crowded_ends(G, cut_ends)
-    nodes = list(G)  # none where a tiny town's roads all lay outside the map
+    nodes = list(G)  # none in a density round whose town kept no road
     xy = np.array([G.nodes[n]["xy"] for n in nodes], dtype=float).reshape(-1, 2)
     out = ~shapely.covers(inside, shapely.points(xy))
     ends = set(cut_ends)
