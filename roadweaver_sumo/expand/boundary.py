@@ -31,8 +31,10 @@ from .perimeter import components_main_first
 from .planar import CLASS_RANK, road_lines
 
 #: metres of road a fringe road keeps at least: a junction just inside the map edge keeps no
-#: stub of a road the edge cuts (a stub of a few metres lies inside the junction's own area)
-MIN_FRINGE = 20.0
+#: stub of a road the edge cuts (a stub of a few metres lies inside the junction's own area);
+#: the shortest road the clean-up keeps (``MIN_EDGE``), as real tiles' fringe roads run from
+#: 13 m (p10) up
+MIN_FRINGE = 12.0
 
 
 def open_boundary(G: nx.Graph) -> None:
