@@ -53,9 +53,9 @@ def test_left_turner_no_longer_waits_in_the_oncoming_lane(tmp_path):
     assert 'contPos="0"' in (out / "plain" / "map.con.xml").read_text()
 
 
-def test_a_map_built_twice_by_netconvert_leaves_only_its_scenario_files(tmp_path, monkeypatch):
-    """The same map needs netconvert twice (cars would wait in a foe's path after the first
-    run): the folder then holds the scenario's files and no temporary one."""
+def test_a_map_built_again_by_netconvert_leaves_only_its_scenario_files(tmp_path, monkeypatch):
+    """The same map needs netconvert more than once (cars would wait in a foe's path after
+    the first run): the folder then holds the scenario's files and no temporary one."""
     spec = ScenarioSpec(density=30, vehicles=500, seed=1, style="mixed")
     out = tmp_path / "s"
     out.mkdir()
@@ -64,7 +64,7 @@ def test_a_map_built_twice_by_netconvert_leaves_only_its_scenario_files(tmp_path
     monkeypatch.setattr(netconvert, "_run", lambda folder: (calls.append(folder),
                                                            original(folder))[1])
     build_scenario_files(spec, out, {}, lambda msg: None)
-    assert len(calls) == 2
+    assert len(calls) >= 2
     assert sorted(p.name for p in out.iterdir()) == [
         "bus_lines.rou.xml", "bus_stops.add.xml", "demand.rou.xml", "lanelet2_map.osm", "map.net.xml", "map.xodr", "netconvert.netccfg",
         "persons.rou.xml", "plain", "scenario.sumocfg", "spec.json", "tls_offsets.add.xml"]
