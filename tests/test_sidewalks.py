@@ -14,7 +14,6 @@ from test_one_way import local_grid
 
 from roadweaver_sumo.cli import main
 from roadweaver_sumo.export.map_files import write_map_files
-from roadweaver_sumo.export.sumo_plain import SIDEWALK_CORNER_RADIUS
 from roadweaver_sumo.hdmap import build_hdmap, hdmap_metrics
 from roadweaver_sumo.hdmap.lanes import LANE_CONFIGS, SIDEWALK_WIDTH
 from roadweaver_sumo.spec import DEFAULT_PERSONS, ScenarioSpec
@@ -64,8 +63,19 @@ def test_sumo_has_the_sidewalks_crossings_and_walking_areas(hd, files):
     walking = {e.get("id").split("_")[0][1:] for e in root.iter("edge")
                if e.get("function") == "walkingarea"}
     assert busy < walking, "walking areas join sidewalks at two-road nodes too"
-    radii = {j.get("id"): j.get("radius") for j in root.iter("junction")}
-    assert {radii[n] for n in busy} == {f"{SIDEWALK_CORNER_RADIUS:.2f}"}, "corners wide enough"
+
+
+def test_sumo_lanes_end_where_the_hd_map_ends_them(hd, files):
+    """Junction outlines come from the HD map, crossings and corners included: netconvert's
+    own made roads between close junctions centimetres long in SUMO only. Along each road,
+    every SUMO lane starts and ends within 0.1 m of its HD map lane."""
+    net = load_net(files["sumo"])
+    for lane in list(hd.road_lanes()) + list(hd.sidewalks.values()):
+        road = LineString(hd.roads[lane.road].centreline)
+        sumo = net.getLane(lane.id).getShape()
+        for ours, theirs in ((lane.centre[0], sumo[0]), (lane.centre[-1], sumo[-1])):
+            assert road.project(Point(theirs)) == pytest.approx(road.project(Point(ours)),
+                                                                 abs=0.1), lane.id
 
 
 def test_opendrive_carries_the_sidewalks_carla_finds_them(hd, files):
@@ -106,7 +116,7 @@ def test_opendrive_crosswalks_are_sumos_crossings_and_carla_reads_them(hd, files
         # CARLA 0.9.16 places objects from the lane-offset line, not from the reference line
         # (OpenDRIVE 1.7, "Objects": t is measured from the reference line): on a one-way
         # road, half its cross-section off (docs/opendrive.md)
-        half = (road.lane_width * len(road.lanes("f")) + road.sidewalk_width) / 2
+        half = road.lane_width * len(road.lanes("f")) / 2  # the laneOffset
         expected[cid] = (crossings[cid][0].centroid, half if road.one_way else 0.0)
     shifted = 0
     for k in range(0, len(points), 4):
@@ -225,3 +235,18 @@ def test_sidewalks_and_walkers_are_the_default_and_can_be_left_out(tmp_path):
     walks = etree.parse(str(tmp_path / "default" / "persons.rou.xml")).getroot()
     assert {p.get("type") for p in walks.iter("person")} == {
         t.get("id") for t in walks.iter("vType") if t.get("vClass") == "pedestrian"}
+
+
+@pytest.mark.parametrize("local_lanes", [1, 2])
+def test_sumo_lanes_lie_where_the_hd_map_lays_them(local_lanes, tmp_path):
+    """SUMO spreads a one-way edge's lanes about its shape without its sidewalk; the HD map
+    lays them out alike, or SUMO's cars drove a metre off the OpenDRIVE lane. Every SUMO lane
+    lies within 0.05 m of its HD map lane's centre line, one-way streets included."""
+    hd = build_hdmap(local_grid(), (48.137, 11.575), one_way_share=0.4, sidewalks=True,
+                     lanes={"local": local_lanes})
+    assert any(road.one_way for road in hd.roads.values())
+    net = load_net(write_map_files(hd, tmp_path)["sumo"])
+    for lane in list(hd.road_lanes()) + list(hd.sidewalks.values()):
+        ours = LineString(lane.centre)
+        for point in net.getLane(lane.id).getShape():
+            assert ours.distance(Point(point)) < 0.05, lane.id

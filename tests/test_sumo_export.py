@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import re
 import shutil
 
 import networkx as nx
@@ -154,8 +153,6 @@ def test_suburban_template_without_traffic_lights(tmp_path):
     assert root.find("tlLogic") is None
     assert _external(connections) == set(lane_connections(hd))
     assert 'value="suburban' not in (tmp_path / "netconvert.netccfg").read_text()
-    assert re.search(r'default\.junctions\.radius value="6"',
-                     (tmp_path / "netconvert.netccfg").read_text())
 
 
 def test_failed_netconvert_raises_one_line_error(built, tmp_path):

@@ -231,9 +231,9 @@ def _lanes(hd: HDMap, road: Road) -> list[str]:
     section = [*(_side(hd, "left", walks["b"] + road.lanes("b")) if road.lanes("b") else []),
                *_element(4, "center", {}, centre),
                *_side(hd, "right", [*reversed(road.lanes("f")), *walks["f"]])]
-    offset = []  # a one-way road's lanes and sidewalk are centred on the reference line
+    offset = []  # a one-way road's driving lanes are centred on the reference line
     if road.one_way:
-        width = len(road.lanes("f")) * road.lane_width + road.sidewalk_width
+        width = len(road.lanes("f")) * road.lane_width
         offset = _element(3, "laneOffset", {"s": 0.0, "a": width / 2.0, "b": 0.0, "c": 0.0,
                                             "d": 0.0})
     return _element(2, "lanes", {}, [*offset,

@@ -1,9 +1,11 @@
 """HD map to SUMO plain XML (``map.nod.xml``, ``map.edg.xml``, ``map.con.xml``) for netconvert.
 
 One SUMO edge per road direction (``r7_f`` along the reference line, ``r7_b`` against it), whose
-shape is the road's centreline in driving direction: SUMO's default ``spreadType="right"`` puts
-the lanes right of it, as in the HD map, so SUMO lane ``r7_f_0`` is HD map lane ``r7_f_0``. A
-one-way road has only its ``f`` edge, its lanes centred on the shape (``spreadType="center"``).
+shape is the road's reference line in driving direction, from one junction outline to the
+other (netconvert's plain edges may start and end on the node's shape): SUMO's default
+``spreadType="right"`` puts the lanes right of it, as in the HD map, so SUMO lane ``r7_f_0``
+is HD map lane ``r7_f_0``, on the same line. A one-way road has only its ``f`` edge, its
+driving lanes centred on the shape (``spreadType="center"``).
 
 Connections come from the HD map's lane graph only. netconvert keeps exactly the connections
 given for an edge that has any, but guesses all (U-turns included) for an edge that has none;
@@ -18,7 +20,6 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
-import shapely
 from lxml import etree
 
 from ..hdmap.model import DIRECTIONS, HDMap, edge_id
@@ -67,24 +68,15 @@ def _add_location(root: etree._Element, hd: HDMap) -> None:
 
 
 BORDER_M = 1.0  # a dead end this close to the map border is where a road left the map
-#: Corner radius (m) of a junction with sidewalks, at the sidewalk's outer edge (SUMO's default
-#: 4 m). On tight corners a right turn crosses both crossings near the corner, at an angle, and
-#: SUMO's drivers, who judge a walker's distance along the crossing as if they crossed it
-#: square, pass walkers who then step into the car's side. 2 km maps with 100 walkers (grid and
-#: mixed, densities 10-60): a vehicle-person collision on 7 of 50 maps at 4 m, 4 of 50 at 8 m;
-#: 12 m left 2 but made long left turns meet at the exits of arterial lights (2 junction
-#: collisions, 1 map with 2.5 % teleports).
-SIDEWALK_CORNER_RADIUS = 8.0
 
 
 def plain_nodes(hd: HDMap) -> etree._Element:
-    """``<nodes>``: one node per junction with its control type. A dead end on the map border
-    (a road that ran on into the town the map was cut from) is marked ``fringe="outer"``, so
-    that randomTrips' ``--fringe-junctions`` sends through traffic in and out there, and not
-    at the cul-de-sacs inside. On a map with sidewalks every junction off a roundabout's ring
-    has corners of :data:`SIDEWALK_CORNER_RADIUS`."""
+    """``<nodes>``: one node per junction with its control type and the HD map's outline
+    (:func:`junction_outline`). A dead end on the map border (a road that ran on into the
+    town the map was cut from) is marked ``fringe="outer"``, so that randomTrips'
+    ``--fringe-junctions`` sends through traffic in and out there, and not at the cul-de-sacs
+    inside."""
     root = _root("nodes", "nodes_file.xsd")
-    corners = {"radius": _num(SIDEWALK_CORNER_RADIUS)} if hd.sidewalks else {}
     if hd.geo_origin is not None:
         _add_location(root, hd)
     for jid in sorted(hd.junctions):
@@ -93,26 +85,46 @@ def plain_nodes(hd: HDMap) -> etree._Element:
         outer = j.type == "dead_end" and min(x, y, hd.width - x, hd.height - y) < BORDER_M
         etree.SubElement(root, "node", id=node_id(jid), x=_num(x), y=_num(y), type=j.type,
                          **({"fringe": "outer"} if outer else {}),
-                         **({} if j.roundabout is not None else corners),
-                         **({"shape": " ".join(_points(_taper_shape(hd, j)))} if j.taper else {}))
+                         shape=" ".join(_points(junction_outline(hd, j))))
     return root
 
 
-def _taper_shape(hd: HDMap, junction) -> np.ndarray:
-    """The outline of a taper junction (``hdmap.turn_bays``): the hull of its lanes' ends.
-    netconvert would make a two-arm junction a few metres long, the through lanes jumping a
-    lane width aside in it; given the HD map's outline, its internal lanes are the HD map's
-    connectors."""
-    points = []
+def junction_outline(hd: HDMap, junction) -> np.ndarray:
+    """The outline of a junction: round it counter-clockwise, each road's cross-section where
+    the HD map's trims (``hdmap.junctions.junction_trims``) end its lanes and sidewalks, from
+    its right edge to its left (seen from the junction); a dead end's closes at its centre.
+    Left to itself netconvert draws larger junctions than the HD map's wherever crossings
+    are, and a road of 25 m between two of them became a SUMO edge of 0.2 m while
+    ``map.xodr`` kept 8 m of it; at a taper junction (``hdmap.turn_bays``) it made the
+    through lanes jump a lane width aside. Given the outline, SUMO's edges end where the HD
+    map's lanes do and its internal lanes follow the HD map's connectors."""
+    centre = np.asarray(junction.xy, dtype=float)
+    arms = []
     for rid in junction.roads:
         road = hd.roads[rid]
+        points = []
         for direction in DIRECTIONS:
             lanes = [hd.lanes[lane_id] for lane_id in road.lanes(direction)]
             sidewalk = hd.sidewalks.get(f"{edge_id(rid, direction)}_0")
+            k = -1 if road.ends_at(direction) == junction.id else 0
             for lane in lanes + ([sidewalk] if sidewalk else []):
-                k = -1 if road.ends_at(direction) == junction.id else 0
                 points += [lane.left[k], lane.right[k]]
-    return np.asarray(shapely.MultiPoint(points).convex_hull.exterior.coords)[:-1]
+        points = np.asarray(points)
+        mid = points.mean(axis=0)
+        out = mid - centre if np.hypot(*(mid - centre)) > 1e-9 else _leaving(road, junction.id)
+        rel = points - mid
+        side = out[0] * rel[:, 1] - out[1] * rel[:, 0]  # > 0: left, seen from the junction
+        arms.append((math.atan2(out[1], out[0]), points[np.argmin(side)], points[np.argmax(side)]))
+    outline = [p for _, right, left in sorted(arms, key=lambda arm: arm[0]) for p in (right, left)]
+    if len(arms) == 1:
+        outline.append(centre)
+    return np.asarray(outline)
+
+
+def _leaving(road, node: int) -> np.ndarray:
+    """The direction in which ``road`` leaves ``node``."""
+    line = road.centreline if road.from_node == node else road.centreline[::-1]
+    return line[1] - line[0]
 
 
 def plain_edges(hd: HDMap) -> etree._Element:
@@ -122,7 +134,7 @@ def plain_edges(hd: HDMap) -> etree._Element:
     root = _root("edges", "edges_file.xsd")
     for rid in sorted(hd.roads):
         road = hd.roads[rid]
-        points = _points(road.centreline)  # formatted once, for both directions
+        points = _points(road.reference[0])  # formatted once, for both directions
         for direction in DIRECTIONS:
             if not road.lanes(direction):  # a one-way road
                 continue

@@ -3,12 +3,20 @@
 from __future__ import annotations
 
 import networkx as nx
+import numpy as np
 
 from ..spec import ScenarioSpec
 from .control import DEFAULT_RULES, plan_controls
 from .junctions import add_connectors, folding_turns, make_junctions
 from .lane_counts import give_lanes
-from .lanes import SIDEWALK_WIDTH, build_road_lanes, lane_ends, make_roads, plan_reference_lines
+from .lanes import (
+    MAX_TRIM_SHARE,
+    SIDEWALK_WIDTH,
+    build_road_lanes,
+    lane_ends,
+    make_roads,
+    plan_reference_lines,
+)
 from .model import HDMap, Road
 from .movements import junction_plan
 from .one_way import choose_one_way
@@ -18,7 +26,10 @@ from .turn_bays import TAPER_LENGTH, add_turn_bays
 
 #: A junction whose turn bends tighter than half its lane's width (its inner lane edge folds
 #: over where a reader offsets the lane from its centre line) grows by this factor, up to
-#: WIDEN_ROUNDS times; ``junction_radii`` gives enough room where roads run straight to it.
+#: WIDEN_ROUNDS times; ``junction_trims`` give enough room where roads run straight to it. A
+#: junction one of whose roads is too short to be trimmed further (``lanes.MAX_TRIM_SHARE``)
+#: does not grow: its other roads alone ended 56 m out beside one ending at 15 m, and SUMO's
+#: walkers were lost on the sliver of a walking area between them.
 #: A turn that still folds then is banned where its lanes have other ways on, up to
 #: BAN_ROUNDS times (the lanes it served take a neighbour lane's movement, which may fold too).
 WIDEN_FACTOR, WIDEN_ROUNDS, BAN_ROUNDS = 1.25, 4, 3
@@ -75,10 +86,14 @@ def build_hdmap(
     roads, junctions = list(hd.roads.values()), list(hd.junctions)
     for _ in range(WIDEN_ROUNDS + 1):
         tight = {lane.junction for lane in _lanes_and_connectors(hd, roads, junctions)}
+        tight = {node for node in tight if not _trims_at_most(hd, node)}
         if not tight:
             break
         for node in tight:
-            hd.junctions[node].radius *= WIDEN_FACTOR
+            trims = hd.junctions[node].trims
+            for r, trim in trims.items():
+                most = MAX_TRIM_SHARE * _length(hd.roads[r])
+                trims[r] = min(trim * WIDEN_FACTOR, most)
         roads = [hd.roads[r] for r in sorted({r for node in tight for r in hd.junctions[node].roads})]
         junctions = sorted({node for road in roads for node in (road.from_node, road.to_node)})
     banned: set[tuple[str, str]] = set()
@@ -101,8 +116,8 @@ def _lanes_and_connectors(hd: HDMap, roads: list[Road], junctions: list[int],
     ``junctions`` (those at the ends of ``roads``, or all; ``banned`` lane pairs left out
     where ``movements.junction_plan`` can); return the connectors that fold
     (``junctions.folding_turns``)."""
-    plan_reference_lines(roads, [(hd.junctions[road.from_node].radius,
-                                  hd.junctions[road.to_node].radius) for road in roads])
+    plan_reference_lines(roads, [(hd.junctions[road.from_node].trims[road.id],
+                                  hd.junctions[road.to_node].trims[road.id]) for road in roads])
     for road in roads:  # GenerateLaneBoundaries, ConstructDirectionalLanes
         lanes, sidewalks = build_road_lanes(road)
         hd.lanes.update((lane.id, lane) for lane in lanes)
@@ -117,3 +132,14 @@ def _lanes_and_connectors(hd: HDMap, roads: list[Road], junctions: list[int],
     plan = [(node, *entry) for node in junctions
             for entry in junction_plan(hd, node, ends, banned)]
     return folding_turns(add_connectors(hd, plan, ends))  # ConstructJunctionConnections
+
+
+def _length(road: Road) -> float:
+    """Length of a road's centre line, node to node, metres."""
+    return float(np.linalg.norm(np.diff(road.centreline, axis=0), axis=1).sum())
+
+
+def _trims_at_most(hd: HDMap, node: int) -> bool:
+    """Whether a road of junction ``node`` is trimmed as far as its length allows."""
+    trims = hd.junctions[node].trims
+    return any(trims[r] >= MAX_TRIM_SHARE * _length(hd.roads[r]) for r in trims)

@@ -229,14 +229,16 @@ def _lane_offsets(road_class: str, one_way: bool, sidewalk: float,
     """Left offsets of a road's lines from its reference line: first those of its ``f`` lanes
     (boundaries, centres, then the sidewalk's outer edge and centre), then the same to the
     left for its ``b`` lanes (one array for one offsetting call); ``counts``: the lanes of
-    each direction. A one-way road has no ``b`` lanes, and its cross-section (lanes and
-    sidewalk) is centred on the reference line."""
+    each direction. A one-way road has no ``b`` lanes; its driving lanes are centred on the
+    reference line, its sidewalk right of them, as SUMO lays out an edge of
+    ``spreadType="center"`` (centred with its sidewalk, SUMO's cars drove a metre off the
+    OpenDRIVE lane)."""
     w = LANE_CONFIGS[road_class].width
 
     def right_of(n: int) -> np.ndarray:
         # how far right of the driving direction the cross-section's left edge lies: the
-        # reference line itself, or half the cross-section left of it on a one-way road
-        start = -(n * w + sidewalk) / 2.0 if one_way else 0.0
+        # reference line itself, or half the driving lanes left of it on a one-way road
+        start = -n * w / 2.0 if one_way else 0.0
         # boundary j at (n - j) lane widths right of that edge (j = 0 the outermost), then
         # lane k's centre at (n - k - 0.5) widths
         right = start + w * np.concatenate([np.arange(n, -1, -1), np.arange(n, 0, -1) - 0.5])

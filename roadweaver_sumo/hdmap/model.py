@@ -133,18 +133,23 @@ class Road:
 
 @dataclass
 class Junction:
-    """A RoadGraph node: its position, control type, trim radius and connector lanes."""
+    """A RoadGraph node: its position, control type, trims and connector lanes."""
 
     id: int
     xy: tuple[float, float]
     type: str  # one of control.CONTROLS (SUMO's node types)
-    radius: float  # lane ends are trimmed back about this far from the centre
+    trims: dict[int, float]  # road id -> how far from the centre its lanes end
     roads: list[int]  # incident roads, sorted
     connectors: list[str] = field(default_factory=list)
     #: where a turn bay opens (``hdmap.turn_bays``): the through lanes move aside in here
     taper: bool = False
     #: a roundabout's ring node (``hdmap.roundabouts``): the id of the junction it replaced
     roundabout: int | None = None
+
+    @property
+    def radius(self) -> float:
+        """The largest trim: no lane of the junction's roads ends further out."""
+        return max(self.trims.values())
 
 
 @dataclass

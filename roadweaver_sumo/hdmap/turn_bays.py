@@ -29,8 +29,8 @@ from shapely.ops import substring
 from .. import clearance  # a module: clearance imports hdmap.lanes, which loads this package
 from .control import ControlPlan
 from .geometry import dedupe, end_directions, signed_angles
-from .junctions import HEADING_PROBE, junction_radii
-from .lanes import LANE_CONFIGS, MAX_TRIM_SHARE, lanes_of
+from .junctions import CORNER_RADIUS, HEADING_PROBE, junction_trims
+from .lanes import LANE_CONFIGS, MAX_TRIM_SHARE, SIDEWALK_WIDTH, lanes_of
 from .movements import SHARP_LEFT_MAX, STRAIGHT_MAX
 
 BAY_LENGTH = 90.0  # m from the signalised junction's centre to the taper node
@@ -105,10 +105,12 @@ def _bay_length(leaving: np.ndarray, classes: list[str], lanes: list[int],
                 bayed: list[bool]) -> float:
     """How long the bay roads of one light's junction are: ``BAY_LENGTH``, or long enough
     that their trim at the junction (its radius with the bays' extra lanes, and room to grow)
-    stays within ``MAX_TRIM_SHARE`` of them."""
+    stays within ``MAX_TRIM_SHARE`` of them), its corners rounded as if the roads had
+    sidewalks: long enough either way."""
     lane_widths = np.array([LANE_CONFIGS[c].width for c in classes])
     widths = lane_widths * (np.array(lanes) + np.array(bayed))
-    radius = junction_radii(leaving, widths, lane_widths, [len(classes)])[0]
+    radius = junction_trims(leaving, widths, lane_widths, [len(classes)],
+                            widths + SIDEWALK_WIDTH, [CORNER_RADIUS]).max()
     return max(BAY_LENGTH, GROWTH_ROOM * radius / MAX_TRIM_SHARE)
 
 
