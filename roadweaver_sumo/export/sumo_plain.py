@@ -111,7 +111,7 @@ def junction_outline(hd: HDMap, junction) -> np.ndarray:
                 points += [lane.left[k], lane.right[k]]
         points = np.asarray(points)
         mid = points.mean(axis=0)
-        out = mid - centre if np.hypot(*(mid - centre)) > 1e-9 else _leaving(road, junction.id)
+        out = mid - centre  # lane ends are trimmed at least MIN_RADIUS from the centre
         rel = points - mid
         side = out[0] * rel[:, 1] - out[1] * rel[:, 0]  # > 0: left, seen from the junction
         arms.append((math.atan2(out[1], out[0]), points[np.argmin(side)], points[np.argmax(side)]))
@@ -119,12 +119,6 @@ def junction_outline(hd: HDMap, junction) -> np.ndarray:
     if len(arms) == 1:
         outline.append(centre)
     return np.asarray(outline)
-
-
-def _leaving(road, node: int) -> np.ndarray:
-    """The direction in which ``road`` leaves ``node``."""
-    line = road.centreline if road.from_node == node else road.centreline[::-1]
-    return line[1] - line[0]
 
 
 def plain_edges(hd: HDMap) -> etree._Element:

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import networkx as nx
-import numpy as np
 
 from ..spec import ScenarioSpec
 from .control import DEFAULT_RULES, plan_controls
+from .geometry import arc_lengths
 from .junctions import add_connectors, folding_turns, make_junctions
 from .lane_counts import give_lanes
 from .lanes import (
@@ -92,7 +92,7 @@ def build_hdmap(
         for node in tight:
             trims = hd.junctions[node].trims
             for r, trim in trims.items():
-                most = MAX_TRIM_SHARE * _length(hd.roads[r])
+                most = MAX_TRIM_SHARE * arc_lengths(hd.roads[r].centreline)[-1]
                 trims[r] = min(trim * WIDEN_FACTOR, most)
         roads = [hd.roads[r] for r in sorted({r for node in tight for r in hd.junctions[node].roads})]
         junctions = sorted({node for road in roads for node in (road.from_node, road.to_node)})
@@ -134,12 +134,7 @@ def _lanes_and_connectors(hd: HDMap, roads: list[Road], junctions: list[int],
     return folding_turns(add_connectors(hd, plan, ends))  # ConstructJunctionConnections
 
 
-def _length(road: Road) -> float:
-    """Length of a road's centre line, node to node, metres."""
-    return float(np.linalg.norm(np.diff(road.centreline, axis=0), axis=1).sum())
-
-
 def _trims_at_most(hd: HDMap, node: int) -> bool:
     """Whether a road of junction ``node`` is trimmed as far as its length allows."""
     trims = hd.junctions[node].trims
-    return any(trims[r] >= MAX_TRIM_SHARE * _length(hd.roads[r]) for r in trims)
+    return any(trims[r] >= MAX_TRIM_SHARE * arc_lengths(hd.roads[r].centreline)[-1] for r in trims)
