@@ -154,6 +154,10 @@ def mean_curvature(G: nx.Graph, step: float = CURVATURE_STEP_M) -> float:
 
 SHARP_BEND_DEG = 120.0
 SHARP_BEND_REACH_M = 12.0
+#: steps shorter than this have no direction of their own: a net's coordinates are rounded
+#: to 0.01 m, and a 0.01 m step between two points of a smooth bend pointed along an axis
+#: (learned grid d20 s9: 0° in a bend from 97° to 92°, counted as a 120° turn within 12 m)
+MIN_STEP_M = 0.05
 
 
 def sharp_bends(G: nx.Graph) -> int:
@@ -181,7 +185,7 @@ def sharp_bend_roads(G: nx.Graph, turn_deg: float = SHARP_BEND_DEG,
     owner = np.repeat(np.arange(len(coords)), [len(c) for c in coords])
     step = np.diff(np.concatenate(coords), axis=0)
     length = np.hypot(*step.T)
-    inside = (owner[1:] == owner[:-1]) & (length > 1e-9)
+    inside = (owner[1:] == owner[:-1]) & (length >= MIN_STEP_M)
     step, length, owner = step[inside], length[inside], owner[1:][inside]
     turn = (np.diff(np.arctan2(step[:, 1], step[:, 0])) + math.pi) % (2 * math.pi) - math.pi
     turn[owner[1:] != owner[:-1]] = 0.0  # no turn from one road into the next
@@ -201,7 +205,7 @@ def sharp_bend_at(coords: np.ndarray, limit: float, reach_m: float) -> float | N
     ``reach_m`` metres: the middle between the two steps that differ most; None if nowhere."""
     step = np.diff(coords, axis=0)
     length = np.hypot(*step.T)
-    step, length = step[length > 1e-9], length[length > 1e-9]
+    step, length = step[length >= MIN_STEP_M], length[length >= MIN_STEP_M]
     heading = np.unwrap(np.arctan2(step[:, 1], step[:, 0]))
     if len(heading) < 2:
         return None

@@ -157,6 +157,30 @@ def test_sharp_bends_counts_roads_that_double_back_within_twelve_metres():
     assert sharp_bends(G) == 0
 
 
+def test_a_rounding_step_in_a_smooth_bend_is_no_sharp_bend():
+    """A net's coordinates have two decimals: in a bend read back from map.net.xml two points
+    0.01 m apart made a step along an axis, 97° off the road's direction, and a smooth 60°
+    bend counted as a sharp one (learned grid d20 s9 failed net.sharp_bends). A hairpin made
+    of such steps still counts."""
+    from roadweaver_sumo.metrics import sharp_bends
+    from roadweaver_sumo.roadgraph import add_road, new_road_graph
+
+    bend = np.array([  # the road as map.net.xml gave it
+        [1661.29, 354.79], [1645.26, 372.73], [1609.06, 409.99], [1606.74, 412.56],
+        [1605.92, 413.51], [1604.42, 415.4], [1603.05, 417.41], [1602.9, 417.64],
+        [1601.71, 419.67], [1600.71, 421.78], [1599.81, 424.1], [1599.13, 426.41],
+        [1598.66, 428.73], [1598.36, 431.11], [1598.37, 431.11], [1598.27, 433.54],
+        [1598.36, 435.95], [1598.37, 436.15], [1598.65, 438.57], [1599.09, 440.95],
+        [1599.37, 442.23], [1600.2, 445.5], [1616.36, 501.12], [1618.5, 512.09]]) - [1100.0, 0.0]
+    hairpin = np.round(_u_turn(4.0), 2)
+    G = new_road_graph(1000, 1000)
+    for k, coords in enumerate((bend, hairpin)):
+        G.add_node(2 * k, xy=tuple(coords[0]))
+        G.add_node(2 * k + 1, xy=tuple(coords[-1]))
+        add_road(G, 2 * k, 2 * k + 1, coords, "local")
+    assert sharp_bends(G) == 1
+
+
 @pytest.mark.parametrize("road", [
     # a road north and a road east joined at a node where the north one had overshot the
     # other by a metre: 130° within a metre
