@@ -75,6 +75,7 @@ PRIOR_RANGES = {"gridness": (0.0, 1.0), "radialness": (-1.0, 1.0),
 # Stage ids for np.random.default_rng([seed, STAGE]): each stage draws from its own stream, so
 # changing one stage never shifts the random numbers of another.
 STAGE_SKELETON, STAGE_GROWTH, STAGE_FILL, STAGE_DEMAND, STAGE_PERSONS = 1, 2, 4, 5, 6
+STAGE_CROSSROADS = 7
 
 
 @dataclass(frozen=True)

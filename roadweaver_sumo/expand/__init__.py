@@ -97,7 +97,7 @@ def expand_skeleton(spec: ScenarioSpec, skeleton: Skeleton) -> nx.Graph:
     if spec.boundary == "open":
         G = closest
         city = spec.like["statistics"].get("dead_end_share_inner") if spec.like else None
-        add_dead_ends(G, rng, BORDER_MARGIN, MIN_ANGLE, share=city)
+        add_dead_ends(G, rng, BORDER_MARGIN, MIN_ANGLE, spec.density, share=city)
         _keep_roads_clear(G)
     cut_sharp_bends(G)
     _check_density(spec, road_node_count(G))

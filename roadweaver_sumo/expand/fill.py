@@ -9,13 +9,14 @@ T becomes a crossroads, as real streets run on through junctions (real tiles hav
 junctions 100 m inside the tile; without continuations the fill makes T-junctions only), and the
 road adds one node. The T may be one a road across the neighbouring block made after this block
 was cut. The node count moves in steps of one or two, so it overshoots the target by at most
-one. When there are too many road nodes, local roads that are not bridges are removed, shortest
-first.
+one. When there are too many road nodes, local roads that are not bridges are removed, those
+whose removal leaves no corner first (:func:`prune_to_density`).
 """
 
 from __future__ import annotations
 
 import heapq
+import math
 from collections.abc import Callable
 from functools import partial
 
@@ -31,10 +32,14 @@ from .block_split import split_face
 from .chord_insert import insert_chord
 from .chords import continuation_chord, scattered_chord, split_chord, straight_chord
 from .edge_index import EdgeIndex
+from .junction_angles import departure_angles
 from .node_points import NodePoints
 from .planar import road_lines
 
 CONTINUE_SHARE = 0.5  # share of blocks first offered a continuation of a side street
+#: Two roads left at a node run straight on when they deviate from a line by at most this,
+#: measured BEND_PROBE_M out from the node.
+BEND_TOL_DEG, BEND_PROBE_M = 30.0, 20.0
 
 
 def faces(G: nx.Graph) -> list[Polygon]:
@@ -120,25 +125,51 @@ def stub_loss(G: nx.Graph, stub: float) -> int:
 
 def prune_to_density(G: nx.Graph, target: int, stub: float = 0.0,
                      spare: Callable[[int, int], bool] | None = None) -> None:
-    """Remove non-bridge local roads, shortest first, while above ``target`` + 1 road nodes
-    (counted as the clean-up will leave them: :func:`stub_loss`). ``spare(u, v)`` says
-    whether the map holds together without road u-v (default: it is not a bridge of ``G``).
+    """Remove non-bridge local roads while above ``target`` + 1 road nodes (counted as the
+    clean-up will leave them: :func:`stub_loss`). ``spare(u, v)`` says whether the map holds
+    together without road u-v (default: it is not a bridge of ``G``).
 
-    One pass over the roads sorted once: removing a road only lowers degrees and only turns
-    roads into bridges, so a road that cannot go now never can, and each road is tested with a
-    local search for another path between its ends rather than a bridge search of the graph."""
+    Roads whose removal leaves no bend go first (:func:`pruning_order`): the clean-up joins
+    the two roads left at a former T-junction into one, and where they met at a right angle
+    that road has a corner. Pruning shortest first made such corners the commonest bend of
+    our maps (issue 35: learned maps turned 3.4 rad/km, real tiles 2.3, and the excess was
+    corners). A road's order is taken again when its turn comes, since removing a neighbour
+    may have changed it; removing a road only lowers degrees and only turns roads into
+    bridges, so a road that cannot go now never can."""
     count = road_node_count(G) - stub_loss(G, stub)
     spare = spare or partial(on_cycle, G)
-    candidates = sorted(
-        (edge_length(G, u, v), u, v) for u, v in G.edges if G.edges[u, v]["road_class"] != "arterial"
-    )
-    for _, u, v in candidates:
-        if count <= target + 1:
-            return
+    heap = [(pruning_order(G, u, v), u, v) for u, v in G.edges
+            if G.edges[u, v]["road_class"] != "arterial"]
+    heapq.heapify(heap)
+    while heap and count > target + 1:
+        order, u, v = heapq.heappop(heap)
         if G.degree(u) < 3 or G.degree(v) < 3 or not spare(u, v):
+            continue
+        now = pruning_order(G, u, v)
+        if now != order:
+            heapq.heappush(heap, (now, u, v))
             continue
         G.remove_edge(u, v)
         count += sum((G.degree(n) != 2) - (G.degree(n) + 1 != 2) for n in (u, v))
+
+
+def pruning_order(G: nx.Graph, u, v) -> tuple[int, int, float]:
+    """Sort key of road u-v among the roads to prune: how many bends its removal leaves at
+    its ends (:func:`bend_left`), how many crossroads it turns into T-junctions, then the
+    longest first: removing short roads first left real towns' short links out (learned maps'
+    shortest tenth of roads began at 49 m, real tiles' at 33 m)."""
+    bends = int(bend_left(G, u, v)) + int(bend_left(G, v, u))
+    crossroads = int(G.degree(u) == 4) + int(G.degree(v) == 4)
+    return bends, crossroads, -edge_length(G, u, v)
+
+
+def bend_left(G: nx.Graph, n, gone) -> bool:
+    """Whether node ``n`` is left with two roads that do not run straight on (within
+    :data:`BEND_TOL_DEG`) once its road to ``gone`` is removed."""
+    if G.degree(n) != 3:
+        return False
+    a, b = (angle for angle, w in departure_angles(G, n, BEND_PROBE_M) if w != gone)
+    return abs((a - b) % (2 * math.pi) - math.pi) > math.radians(BEND_TOL_DEG)
 
 
 def on_cycle(G: nx.Graph, u, v) -> bool:

@@ -32,13 +32,17 @@ def block_weight(skeleton: Skeleton, cut: tuple[float, float, float, float]
     """The fill's weight of a block: the neighbourhood's road field at a point inside it
     (module docstring), times the share of the block inside ``cut``, the map's box in the
     town it is cut out of. Roads outside the map are cut away, so the field counts only
-    inside it: the town's ring road, part of the procedural road field, drew the fill to the
-    town's corners."""
+    inside it (the town's ring road, part of the procedural road field, drew the fill to the
+    town's corners), averaged over the part of the neighbourhood inside: averaged over all of
+    it, the field fell by half at the map's edge, the fill left a band along the edge
+    sparse, and 1.2 % of our road length ran along the border against 1.8 % of real tiles'
+    (``realism.frame_share``, medians)."""
     rows, cols = skeleton.road_prob.shape
     y, x = (np.arange(rows) + 0.5) * skeleton.res, (np.arange(cols) + 0.5) * skeleton.res
     inside = ((cut[1] <= y) & (y <= cut[3]))[:, None] & ((cut[0] <= x) & (x <= cut[2]))[None, :]
-    field = gaussian_filter(np.where(inside, skeleton.road_prob, 0.0),
-                            NEIGHBOURHOOD / skeleton.res)
+    sigma = NEIGHBOURHOOD / skeleton.res
+    field = gaussian_filter(np.where(inside, skeleton.road_prob, 0.0), sigma)
+    field = field / np.maximum(gaussian_filter(inside.astype(float), sigma), 1e-6)
     mean = float(field[inside].mean()) if inside.any() else 0.0
     if mean <= 0.0:
         field = np.ones_like(field)

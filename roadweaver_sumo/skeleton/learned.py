@@ -4,8 +4,10 @@ c is the style preset measured on real tiles (``data.condition.STYLE_PRESETS``) 
 requested density. The transformer knows densities only as dense as its training tiles (about
 35 to 150 road nodes/km²); a sparser request samples a denser layout over a proportionally larger
 window (``scale`` > 1), so block shapes stay real while blocks grow. The decoded field's
-centrelines become the skeleton roads, its orientation channels the basis field and its road
-channel the A* cost map; the expansion then grows, reconnects and fills to the exact density.
+centrelines, squared up (:mod:`.square_up`) and with side streets continued into crossroads
+by the gridness prior (:mod:`.crossroads`), become the skeleton roads, its orientation
+channels the basis field and its road channel the A* cost map; the expansion then grows,
+reconnects and fills to the exact density.
 """
 
 from __future__ import annotations
@@ -22,10 +24,11 @@ from ..data.condition import CONDITION_NAMES, STYLE_PRESETS, with_priors
 from ..data.field import field_to_graph
 from ..portable import FLOAT32_DECIMALS, portable
 from ..roadgraph import edge_coords, edge_length
-from ..spec import STAGE_SKELETON, ScenarioSpec
+from ..spec import STAGE_CROSSROADS, STAGE_SKELETON, ScenarioSpec
 from ..tensor_field import TensorField, blend, field_grid, from_cross, magnitude, to_cross
+from .crossroads import stem_continuations
 from .model import Skeleton, perimeter
-from .procedural import FIELD_RES, basis_field, trace_arterials
+from .procedural import FIELD_RES, basis_field, block_size, trace_arterials
 from .square_up import square_up
 
 #: Densities (road nodes/km²) the training tiles cover well (5th..95th percentile of v1).
@@ -66,11 +69,17 @@ def learned_skeleton(spec: ScenarioSpec) -> Skeleton:
     F, res = sample_field(gen, c, spec.width, spec.height, seed, scale=scale)
     F = portable(F, FLOAT32_DECIMALS).astype(F.dtype)
 
+    gridness = float(c[CONDITION_NAMES.index("gridness")])
+
     def centrelines() -> tuple[list, list]:
         graph = field_to_graph(F, F.shape[1] * res, threshold=gen.road_threshold)
-        if spec.boundary == "open":  # ring maps stay the maps of earlier versions
-            square_up(graph, gridness=float(c[CONDITION_NAMES.index("gridness")]))
-        return _clipped_roads(graph, spec.width, spec.height)
+        if spec.boundary == "ring":  # ring maps stay the maps of earlier versions
+            return _clipped_roads(graph, spec.width, spec.height)
+        square_up(graph, gridness=gridness)
+        lines, classes = _clipped_roads(graph, spec.width, spec.height)
+        extra = stem_continuations(lines, block_size(spec.density), gridness,
+                                   spec.rng(STAGE_CROSSROADS))
+        return lines + extra, classes + ["local"] * len(extra)
 
     def fields() -> tuple[TensorField, np.ndarray]:
         return _basis_field(F, res, spec), _resample(F[..., 0], res, spec.width, spec.height)
