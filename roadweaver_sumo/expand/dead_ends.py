@@ -4,9 +4,10 @@ Away from the border 5-33 % of a real 2 km tile's road nodes are dead ends (p10-
 15 %, more in sparse towns): cul-de-sacs, streets that stop at a park, a rail line or a river.
 The A* reconnection joins the skeleton's dead ends (paper §III-C) and the density fill
 (:mod:`.fill`) makes only roads across a block, so our maps sat at 11-13 % whatever the town.
-:func:`add_dead_ends` cuts local roads short that the map does not need for its connections: the road keeps the part from one junction and stops inside the
-block. The junction it left was a T, which becomes a bend, so the map trades a T-junction for
-a dead end and its road-node count (its density) stays as it was.
+:func:`add_dead_ends` cuts local roads short that the map does not need for its connections:
+the road keeps the part from one junction and stops inside the block. The junction it left was
+a T, which becomes a bend, so the map trades a T-junction for a dead end and its road-node
+count (its density) stays as it was.
 """
 
 from __future__ import annotations
