@@ -92,8 +92,7 @@ def build_hdmap(
         for node in tight:
             trims = hd.junctions[node].trims
             for r, trim in trims.items():
-                most = MAX_TRIM_SHARE * arc_lengths(hd.roads[r].centreline)[-1]
-                trims[r] = min(trim * WIDEN_FACTOR, most)
+                trims[r] = min(trim * WIDEN_FACTOR, _most_trim(hd, r))
         roads = [hd.roads[r] for r in sorted({r for node in tight for r in hd.junctions[node].roads})]
         junctions = sorted({node for road in roads for node in (road.from_node, road.to_node)})
     banned: set[tuple[str, str]] = set()
@@ -134,7 +133,11 @@ def _lanes_and_connectors(hd: HDMap, roads: list[Road], junctions: list[int],
     return folding_turns(add_connectors(hd, plan, ends))  # ConstructJunctionConnections
 
 
+def _most_trim(hd: HDMap, rid: int) -> float:
+    """How far road ``rid`` may be trimmed at either end (``lanes.MAX_TRIM_SHARE``)."""
+    return MAX_TRIM_SHARE * arc_lengths(hd.roads[rid].centreline)[-1]
+
+
 def _trims_at_most(hd: HDMap, node: int) -> bool:
     """Whether a road of junction ``node`` is trimmed as far as its length allows."""
-    trims = hd.junctions[node].trims
-    return any(trims[r] >= MAX_TRIM_SHARE * arc_lengths(hd.roads[r].centreline)[-1] for r in trims)
+    return any(trim >= _most_trim(hd, r) for r, trim in hd.junctions[node].trims.items())
